@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <functional>
 #include <random>
 #include <sstream>
@@ -99,6 +100,27 @@ inline Eigen::VectorXd random_vector(Eigen::Index n, double scale, std::mt19937&
   Eigen::VectorXd v(n);
   for (Eigen::Index i = 0; i < n; ++i) v[i] = u(gen);
   return v;
+}
+
+/// Rotation by angle (radians) about axis (any non-zero length), by Rodrigues' formula.
+inline Eigen::Matrix3d rotation_about(const Eigen::Vector3d& axis, double angle) {
+  return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+}
+
+/// Uniformly distributed random rotation (normalised Gaussian quaternion), det = +1.
+inline Eigen::Matrix3d random_rotation(std::mt19937& gen) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  Eigen::Vector4d c;
+  for (int i = 0; i < 4; ++i) c[i] = n(gen);  // sequenced: argument order is unspecified
+  const Eigen::Quaterniond q(c.normalized());
+  return q.toRotationMatrix();
+}
+
+/// Random 3x3 matrix U·diag(singular_values)·Vᵀ with random rotations U, V: controls conditioning
+/// (and, with a negative entry, inversion) of deformation gradients in tests.
+inline Eigen::Matrix3d matrix_with_singular_values(const Eigen::Vector3d& singular_values,
+                                                   std::mt19937& gen) {
+  return random_rotation(gen) * singular_values.asDiagonal() * random_rotation(gen).transpose();
 }
 
 }  // namespace sinew::testing

@@ -56,7 +56,7 @@ common::BeamDescription parse_beam_description(const JsonCursor& root) {
       }
     }
   }
-  if (auto err = d.validate()) throw InputError(*err);
+  if (auto err = d.validate()) throw InputError(root.file() + ": " + *err);
   return d;
 }
 

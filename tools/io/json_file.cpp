@@ -28,10 +28,18 @@ nlohmann::json read_json_file(const std::string& path) {
       }
     }
     std::string what = e.what();
-    const auto colon = what.find("parse error");
-    if (colon != std::string::npos) what = what.substr(colon);
+    // Drop nlohmann's "[json.exception...] parse error at line L, column C: " prefix.
+    const auto column_at = what.find("column ");
+    const auto colon = what.find(": ", column_at == std::string::npos ? 0 : column_at);
+    if (colon != std::string::npos) what = what.substr(colon + 2);
     throw InputError(path + ":" + std::to_string(line) + ":" + std::to_string(column) +
                      ": invalid JSON: " + what);
+  } catch (const nlohmann::json::exception& e) {
+    // e.g. out_of_range.406 "number overflow parsing '1e400'": no position is reported.
+    std::string what = e.what();
+    const auto bracket = what.find("] ");
+    if (bracket != std::string::npos) what = what.substr(bracket + 2);
+    throw InputError(path + ": invalid JSON: " + what);
   }
 }
 

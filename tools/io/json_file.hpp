@@ -31,6 +31,7 @@ class JsonCursor {
 
   const nlohmann::json& value() const { return *value_; }
   const std::string& path() const { return path_; }
+  const std::string& file() const { return file_; }
   bool has(const std::string& key) const;
   /// Member `key` of an object; throws when missing (required) or when this is not an object.
   JsonCursor at(const std::string& key) const;

@@ -77,6 +77,7 @@ int run(const std::string& beam_path, const std::string& out_path, bool quiet) {
   if (!quiet) {
     const int tip = model.num_nodes() - 1;
     const Eigen::Matrix2Xd x = model.current_positions(u);
+    std::cout.precision(10);
     std::cout << summary.brief_report() << "\n"
               << "tip node " << tip << ": x = " << x(0, tip) << ", y = " << x(1, tip)
               << ", theta = " << u[3 * tip + 2] << "\n"
