@@ -109,6 +109,7 @@ BeamModel::BeamModel(BeamDescription description) {
   }
   fixed_mask_ = description_.fixed.empty() ? std::vector<unsigned char>(3 * n, 0)
                                            : description_.fixed;
+  rigid_motions_constrained_ = compute_rigid_motions_constrained();
 }
 
 int BeamModel::num_fixed_dofs() const {
@@ -117,7 +118,7 @@ int BeamModel::num_fixed_dofs() const {
   return count;
 }
 
-bool BeamModel::rigid_motions_constrained() const {
+bool BeamModel::compute_rigid_motions_constrained() const {
   // A rigid motion (a, b, ω) moves node i by (a − ω·Y_i, b + ω·X_i) and turns it by ω. It is
   // blocked when the fixed dofs' rows of this 3n x 3 map have rank 3.
   const int rows = num_fixed_dofs();

@@ -70,8 +70,8 @@ class BeamModel {
   double max_bending_stiffness() const { return max_EI_; }
 
   /// True when the fixed dofs leave no rigid motion of the reference configuration free
-  /// (a free or under-constrained beam has a singular stiffness).
-  bool rigid_motions_constrained() const;
+  /// (a free or under-constrained beam has a singular stiffness). Computed once at construction.
+  bool rigid_motions_constrained() const { return rigid_motions_constrained_; }
 
   /// Strain energy, internal force p(u) (3n) and tangent K_T(u) (block-tridiagonal) summed over
   /// elements. Null outputs are skipped; outputs must be pre-sized; nothing is allocated.
@@ -93,7 +93,10 @@ class BeamModel {
   std::vector<unsigned char> fixed_mask_;
   double total_length_ = 0.0;
   double max_EI_ = 0.0;
+  bool rigid_motions_constrained_ = false;
   std::string error_;
+
+  bool compute_rigid_motions_constrained() const;
 };
 
 }  // namespace sinew::common

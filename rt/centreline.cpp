@@ -1,0 +1,40 @@
+#include "rt/centreline.hpp"
+
+#include <cmath>
+
+namespace sinew::rt {
+
+CentrelinePoint hermite_centreline(const Eigen::Vector2d& X1,
+                                   const common::BeamElementReference& reference,
+                                   const common::Vector6d& u_e, double xi) {
+  const double L0 = reference.length;
+  const Eigen::Vector2d D = reference.chord / L0;
+  const Eigen::Vector2d x1 = X1 + u_e.segment<2>(0);
+  const Eigen::Vector2d x2 = X1 + reference.chord + u_e.segment<2>(3);
+  const double c1 = std::cos(u_e[2]), s1 = std::sin(u_e[2]);
+  const double c2 = std::cos(u_e[5]), s2 = std::sin(u_e[5]);
+  const Eigen::Vector2d t1(c1 * D.x() - s1 * D.y(), s1 * D.x() + c1 * D.y());
+  const Eigen::Vector2d t2(c2 * D.x() - s2 * D.y(), s2 * D.x() + c2 * D.y());
+  const Eigen::Vector2d dt1(-t1.y(), t1.x()), dt2(-t2.y(), t2.x());  // ∂t/∂θ
+
+  const double xi2 = xi * xi, xi3 = xi2 * xi;
+  const double h00 = 2 * xi3 - 3 * xi2 + 1, h10 = xi3 - 2 * xi2 + xi;
+  const double h01 = -2 * xi3 + 3 * xi2, h11 = xi3 - xi2;
+  const double d00 = 6 * xi2 - 6 * xi, d10 = 3 * xi2 - 4 * xi + 1;
+  const double d01 = -6 * xi2 + 6 * xi, d11 = 3 * xi2 - 2 * xi;
+
+  CentrelinePoint p;
+  p.position = h00 * x1 + h10 * L0 * t1 + h01 * x2 + h11 * L0 * t2;
+  Eigen::Vector2d tangent = d00 * x1 + d10 * L0 * t1 + d01 * x2 + d11 * L0 * t2;
+  const double norm = tangent.norm();
+  tangent = norm > 0 ? Eigen::Vector2d(tangent / norm) : D;
+  p.normal = Eigen::Vector2d(-tangent.y(), tangent.x());
+  p.jacobian.setZero();
+  p.jacobian(0, 0) = p.jacobian(1, 1) = h00;
+  p.jacobian(0, 3) = p.jacobian(1, 4) = h01;
+  p.jacobian.col(2) = h10 * L0 * dt1;
+  p.jacobian.col(5) = h11 * L0 * dt2;
+  return p;
+}
+
+}  // namespace sinew::rt

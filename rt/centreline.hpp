@@ -1,0 +1,30 @@
+#pragma once
+/// The beam's centreline between two nodes as a cubic Hermite curve built from the nodal positions
+/// and rotations. A straight chord sits up to l²κ/8 off a bent object (1–2 px for the beams we track);
+/// the Hermite curve uses the nodal rotations, so it follows constant curvature to O(l⁴κ³).
+///
+/// Element e runs from node e to node e+1 with reference chord D (length L₀, unit D̂). At parameter
+/// ξ ∈ [0, 1] the point is
+///   c(ξ) = h₀₀ x₁ + h₁₀ L₀ R(θ₁) D̂ + h₀₁ x₂ + h₁₁ L₀ R(θ₂) D̂
+/// with the cubic Hermite basis h and x_i = X_i + (ux_i, uy_i). It depends on the element's six dofs
+/// only, so image terms keep the stiffness block-tridiagonal.
+
+#include <Eigen/Core>
+
+#include "common/beam/beam_element.hpp"
+
+namespace sinew::rt {
+
+struct CentrelinePoint {
+  Eigen::Vector2d position;              ///< c(ξ), pixels
+  Eigen::Vector2d normal;                ///< unit normal, the tangent turned by +90°
+  Eigen::Matrix<double, 2, 6> jacobian;  ///< ∂c/∂u_e for the element's dofs [ux1 uy1 θ1 ux2 uy2 θ2]
+};
+
+/// Evaluates the Hermite centreline of an element at ξ. X1: reference position of the first node;
+/// u_e: the element's six dofs. No allocation.
+CentrelinePoint hermite_centreline(const Eigen::Vector2d& X1,
+                                   const common::BeamElementReference& reference,
+                                   const common::Vector6d& u_e, double xi);
+
+}  // namespace sinew::rt

@@ -1,0 +1,633 @@
+#include "rt/tracker.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "rt/centreline.hpp"
+
+namespace sinew::rt {
+
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+std::string field_error(const char* name, double value, const char* constraint) {
+  std::ostringstream s;
+  s << "options." << name << " = " << value << " " << constraint;
+  return s.str();
+}
+
+// The verification model: the tracked beam itself when its fixed dofs constrain rigid motion,
+// otherwise (free beams) the same beam clamped at node 0, which is then held at its tracked pose.
+common::BeamDescription verification_description(const common::BeamDescription& beam) {
+  common::BeamDescription d = beam;
+  const common::BeamModel probe(beam);
+  if (probe.valid() && !probe.rigid_motions_constrained()) d.clamp(0);
+  return d;
+}
+
+// The load fit's model: every element split into `parts` straight sub-elements, so that its
+// discretisation error (O(h²)) does not masquerade as a load. Tracker node k is fine node k·parts.
+common::BeamDescription subdivided_description(const common::BeamDescription& beam, int parts) {
+  const common::BeamModel probe(beam);
+  if (!probe.valid() || parts <= 1) return beam;
+  const Eigen::Index n = beam.rest_positions.cols();
+  common::BeamDescription d;
+  d.rest_positions.resize(2, (n - 1) * parts + 1);
+  for (Eigen::Index e = 0; e + 1 < n; ++e) {
+    for (int k = 0; k < parts; ++k) {
+      d.rest_positions.col(e * parts + k) =
+          beam.rest_positions.col(e) +
+          (double(k) / parts) * (beam.rest_positions.col(e + 1) - beam.rest_positions.col(e));
+      d.sections.push_back(beam.sections[e]);
+      if (!beam.prestress.empty()) d.prestress.push_back(beam.prestress[e]);
+    }
+  }
+  d.rest_positions.col((n - 1) * parts) = beam.rest_positions.col(n - 1);
+  if (!beam.fixed.empty()) {
+    d.fixed.assign(3 * d.rest_positions.cols(), 0);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (int a = 0; a < 3; ++a) d.fixed[3 * i * parts + a] = beam.fixed[3 * i + a];
+    }
+  }
+  return d;
+}
+
+common::StaticSolverOptions solver_options(int steps) {
+  common::StaticSolverOptions o;
+  o.load_steps = std::max(1, steps);
+  o.max_iterations_per_step = 25;
+  o.max_step_cuts = 10;
+  o.residual_tolerance = 1e-8;
+  return o;
+}
+
+}  // namespace
+
+std::optional<std::string> TrackerOptions::validate() const {
+  if (observation == ObservationMode::kEdge && !(half_width_px > 0.0)) {
+    return field_error("half_width_px", half_width_px, "must be > 0 in edge mode");
+  }
+  if (samples_per_element < 1 || samples_per_element > 256) {
+    return field_error("samples_per_element", samples_per_element, "must be in [1, 256]");
+  }
+  if (search_range_px < 1 || search_range_px > 200) {
+    return field_error("search_range_px", search_range_px, "must be in [1, 200]");
+  }
+  if (max_candidates < 1 || max_candidates > 16) {
+    return field_error("max_candidates", max_candidates, "must be in [1, 16]");
+  }
+  if (!(min_strength > 0.0)) return field_error("min_strength", min_strength, "must be > 0");
+  if (line_surround_px < 0 || line_surround_px > 50) {
+    return field_error("line_surround_px", line_surround_px, "must be in [0, 50]");
+  }
+  if (band_px < 0 || band_px > 10) return field_error("band_px", band_px, "must be in [0, 10]");
+  if (!(image_stiffness > 0.0)) {
+    return field_error("image_stiffness", image_stiffness, "must be > 0");
+  }
+  if (max_repetitions < 1) return field_error("max_repetitions", max_repetitions, "must be >= 1");
+  if (max_newton_iterations < 1) {
+    return field_error("max_newton_iterations", max_newton_iterations, "must be >= 1");
+  }
+  if (!(convergence_px > 0.0)) return field_error("convergence_px", convergence_px, "must be > 0");
+  if (!(tukey_c > 0.0)) return field_error("tukey_c", tukey_c, "must be > 0");
+  if (!(min_sigma_px > 0.0)) return field_error("min_sigma_px", min_sigma_px, "must be > 0");
+  if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
+    return field_error("min_inlier_fraction", min_inlier_fraction, "must be in [0, 1]");
+  }
+  if (verify_load_steps < 1) {
+    return field_error("verify_load_steps", verify_load_steps, "must be >= 1");
+  }
+  if (!(snake_stretch_weight >= 0.0)) {
+    return field_error("snake_stretch_weight", snake_stretch_weight, "must be >= 0");
+  }
+  if (!(snake_bend_weight >= 0.0)) {
+    return field_error("snake_bend_weight", snake_bend_weight, "must be >= 0");
+  }
+  if (max_load_fit_iterations < 1) {
+    return field_error("max_load_fit_iterations", max_load_fit_iterations, "must be >= 1");
+  }
+  return std::nullopt;
+}
+
+const char* to_string(FrameStatus status) {
+  switch (status) {
+    case FrameStatus::kOk: return "ok";
+    case FrameStatus::kLost: return "lost";
+    case FrameStatus::kNotConverged: return "not_converged";
+  }
+  return "unknown";
+}
+
+Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vector<int> load_nodes)
+    : model_(beam),
+      options_(options),
+      load_nodes_(std::move(load_nodes)),
+      verify_model_(verification_description(beam)),
+      verify_solver_(verify_model_, solver_options(options.verify_load_steps)),
+      verify_solver_warm_(verify_model_, solver_options(2)),
+      fit_model_(subdivided_description(beam, std::max(1, options.load_fit_subdivisions))),
+      fit_solver_(fit_model_, solver_options(1)) {
+  if (!model_.valid()) {
+    error_ = model_.error();
+    return;
+  }
+  if (auto err = options_.validate()) {
+    error_ = *err;
+    return;
+  }
+  const int n = model_.num_nodes();
+  for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
+    const int node = load_nodes_[k];
+    if (node < 0 || node >= n) {
+      error_ = "load_nodes[" + std::to_string(k) + "] = " + std::to_string(node) +
+               " is out of range (the beam has " + std::to_string(n) + " nodes)";
+      return;
+    }
+    for (std::size_t j = 0; j < k; ++j) {
+      if (load_nodes_[j] == node) {
+        error_ = "load_nodes[" + std::to_string(k) + "] = " + std::to_string(node) +
+                 " is listed twice";
+        return;
+      }
+    }
+  }
+  if (load_nodes_.size() > 8) {
+    error_ = "load_nodes has " + std::to_string(load_nodes_.size()) + " nodes; at most 8";
+    return;
+  }
+  if (!load_nodes_.empty() && !model_.rigid_motions_constrained()) {
+    error_ =
+        "load_nodes needs fixed dofs that hold the beam (e.g. a clamped node): a free beam "
+        "cannot carry loads at a few nodes in equilibrium";
+    return;
+  }
+  if (options_.model == TrackerModel::kSnake && options_.observation == ObservationMode::kEdge) {
+    // fine: the snake uses the same image term
+  }
+
+  sides_ = options_.observation == ObservationMode::kEdge ? 2 : 1;
+  profile_search_.mode = options_.observation;
+  profile_search_.range_px = options_.search_range_px;
+  profile_search_.max_candidates = options_.max_candidates;
+  profile_search_.min_strength = static_cast<float>(options_.min_strength);
+  profile_search_.band_px = options_.band_px;
+  profile_search_.line_surround_px =
+      options_.line_surround_px > 0
+          ? options_.line_surround_px
+          : std::max(2, static_cast<int>(std::lround(options_.half_width_px + 1.5)));
+  if (options_.observation != ObservationMode::kEdge && options_.half_width_px <= 0.0) {
+    profile_search_.line_surround_px = options_.line_surround_px > 0 ? options_.line_surround_px : 3;
+  }
+
+  const int elements = model_.num_elements();
+  const int per_element = options_.samples_per_element * sides_;
+  lines_.resize(static_cast<std::size_t>(elements) * per_element);
+  std::size_t l = 0;
+  double stiffness = 0.0, mean_length = 0.0;
+  for (int e = 0; e < elements; ++e) {
+    for (int s = 0; s < options_.samples_per_element; ++s) {
+      for (int side = 0; side < sides_; ++side) {
+        SearchLine& line = lines_[l++];
+        line.element = e;
+        line.xi = static_cast<float>((s + 0.5) / options_.samples_per_element);
+        line.side = sides_ == 1 ? 0.0f : (side == 0 ? -1.0f : 1.0f);
+      }
+    }
+    const double L0 = model_.element(e).length;
+    stiffness += 12.0 * model_.description().sections[e].EI / (L0 * L0 * L0);
+    mean_length += L0;
+  }
+  stiffness /= elements;
+  mean_length /= elements;
+  observation_weight_ = options_.model == TrackerModel::kSnake
+                            ? 1.0
+                            : options_.image_stiffness * stiffness / per_element;
+  damping_translation_ = 1e-9 * observation_weight_ * per_element;
+  damping_rotation_ = damping_translation_ * mean_length * mean_length;
+
+  candidates_.resize(lines_.size() * options_.max_candidates);
+  residual_.assign(lines_.size(), kNaN);
+  sorted_.resize(lines_.size());
+  jacobian_rows_.resize(lines_.size());
+  scratch_.resize(profile_search_.scratch_size());
+  const int dofs = model_.num_dofs();
+  for (Eigen::VectorXd* v : {&u_, &u_prev1_, &u_prev2_, &u_start_, &p_ref_, &gradient_, &du_,
+                             &forces_, &fitted_loads_, &u_verify_, &verify_loads_prev_}) {
+    v->setZero(dofs);
+  }
+  for (Eigen::VectorXd* v : {&u_fit_, &fit_loads_prev_, &fit_rhs_, &fit_z_}) {
+    v->setZero(fit_model_.num_dofs());
+  }
+  tangent_.resize(n);
+  ldlt_.resize(n);
+  if (options_.model == TrackerModel::kSnake) {
+    snake_matrix_.setZero(dofs, dofs);
+    snake_ldlt_ = Eigen::LDLT<Eigen::MatrixXd>(dofs);
+    snake_fixed_ = model_.fixed_mask();
+    for (int i = 0; i < n; ++i) snake_fixed_[3 * i + 2] = 1;  // a polyline has no rotations
+  }
+  const int params = (options_.fit_moments ? 3 : 2) * static_cast<int>(load_nodes_.size());
+  fit_residual_.setZero(2 * n);
+  fit_change_.setZero(2 * n);
+  fit_jacobian_.setZero(2 * n, params);
+  fit_q_.setZero(params);
+  fit_dq_.setZero(params);
+  fit_g_.setZero(params);
+  fit_normal_.setZero(params, params);
+  fit_ldlt_ = Eigen::LDLT<Eigen::MatrixXd>(params);
+  fit_tangent_.resize(fit_model_.num_nodes());
+  fit_factor_.resize(fit_model_.num_nodes());
+}
+
+void Tracker::reset_motion() noexcept { u_prev2_ = u_prev1_; }
+
+CentrelinePoint Tracker::centreline(int element, double xi) const {
+  const Eigen::Vector2d X1 = model_.rest_positions().col(element);
+  const common::Vector6d ue = u_.segment<6>(3 * element);
+  if (options_.model == TrackerModel::kBeam) {
+    return hermite_centreline(X1, model_.element(element), ue, xi);
+  }
+  // The snake is a polyline: straight chords between the nodes.
+  CentrelinePoint p;
+  const Eigen::Vector2d x1 = X1 + ue.segment<2>(0);
+  const Eigen::Vector2d x2 = X1 + model_.element(element).chord + ue.segment<2>(3);
+  p.position = (1.0 - xi) * x1 + xi * x2;
+  Eigen::Vector2d t = x2 - x1;
+  const double norm = t.norm();
+  t = norm > 0 ? Eigen::Vector2d(t / norm) : Eigen::Vector2d(1.0, 0.0);
+  p.normal = Eigen::Vector2d(-t.y(), t.x());
+  p.jacobian.setZero();
+  p.jacobian(0, 0) = p.jacobian(1, 1) = 1.0 - xi;
+  p.jacobian(0, 3) = p.jacobian(1, 4) = xi;
+  return p;
+}
+
+void Tracker::search(const ImageView& frame) {
+  const int K = options_.max_candidates;
+  for (std::size_t l = 0; l < lines_.size(); ++l) {
+    SearchLine& line = lines_[l];
+    const CentrelinePoint p = centreline(line.element, line.xi);
+    line.normal = p.normal;
+    line.centre = p.position + (line.side * options_.half_width_px) * p.normal;
+    ProfileSearch search = profile_search_;
+    if (options_.observation == ObservationMode::kEdge) {
+      // Along +n, a dark object's +n boundary goes dark → bright, its −n boundary bright → dark.
+      const int sign = line.side > 0 ? 1 : -1;
+      search.expected_sign = options_.polarity == EdgePolarity::kAny          ? 0
+                             : options_.polarity == EdgePolarity::kDarkObject ? sign
+                                                                              : -sign;
+    }
+    line.num_candidates =
+        search_profile(frame, line.centre, line.normal, search, scratch_.data(), &candidates_[l * K]);
+  }
+}
+
+double Tracker::residuals() {
+  const int K = options_.max_candidates;
+  std::size_t valid = 0;
+  for (std::size_t l = 0; l < lines_.size(); ++l) {
+    const SearchLine& line = lines_[l];
+    residual_[l] = kNaN;
+    if (line.num_candidates == 0) continue;
+    const CentrelinePoint p = centreline(line.element, line.xi);
+    const Eigen::Vector2d model_point = p.position + (line.side * options_.half_width_px) * p.normal;
+    const double model_offset = (model_point - line.centre).dot(line.normal);
+    double best = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < line.num_candidates; ++c) {
+      const double d = candidates_[l * K + c].offset - model_offset;
+      if (std::abs(d) < std::abs(best)) best = d;
+    }
+    residual_[l] = static_cast<float>(best);
+    // d = (observation − model)·n₀, so ∂d/∂u = −n₀ᵀ ∂c/∂u (the normal's own variation is
+    // second order at the fit).
+    jacobian_rows_[l] = -(line.normal.transpose() * p.jacobian).transpose();
+    sorted_[valid++] = static_cast<float>(std::abs(best));
+  }
+  if (valid == 0) return 0.0;
+  auto mid = sorted_.begin() + valid / 2;
+  std::nth_element(sorted_.begin(), mid, sorted_.begin() + valid);
+  const double sigma = std::max(1.4826 * double(*mid), options_.min_sigma_px);
+  return options_.tukey_c * sigma;
+}
+
+void Tracker::add_image_term(double cutoff) {
+  const bool snake = options_.model == TrackerModel::kSnake;
+  for (std::size_t l = 0; l < lines_.size(); ++l) {
+    const float d = residual_[l];
+    if (!(std::abs(d) < cutoff)) continue;  // NaN or an outlier: weight 0
+    const double r = d / cutoff;
+    const double w = observation_weight_ * (1.0 - r * r) * (1.0 - r * r);  // Tukey
+    const common::Vector6d& j = jacobian_rows_[l];
+    const int e = lines_[l].element;
+    const common::Matrix6d H = w * j * j.transpose();
+    if (snake) {
+      snake_matrix_.block<6, 6>(3 * e, 3 * e) += H;
+    } else {
+      tangent_.add_element(e, H);
+    }
+    gradient_.segment<6>(3 * e) += (w * d) * j;
+  }
+}
+
+void Tracker::add_snake_term(double* energy) {
+  // E = w_s Σ_e (|d_e| − L₀)² + w_b Σ_i |Δ²x_i − Δ²X_i|² (seed 000 §5.2), positions only.
+  const int n = model_.num_nodes();
+  const double ws = options_.snake_stretch_weight, wb = options_.snake_bend_weight;
+  for (int e = 0; e + 1 < n; ++e) {
+    const Eigen::Vector2d d = model_.element(e).chord + u_.segment<2>(3 * e + 3) - u_.segment<2>(3 * e);
+    const double len = std::max(d.norm(), 1e-12);
+    const double L0 = model_.element(e).length;
+    const Eigen::Vector2d g = d / len;
+    const Eigen::Vector2d grad = 2.0 * ws * (len - L0) * g;
+    // Hessian of (|d| − L₀)²: 2 g gᵀ + 2 (|d| − L₀)/|d| (I − g gᵀ), the second part clamped at 0.
+    Eigen::Matrix2d H = 2.0 * ws * g * g.transpose();
+    if (len > L0) H += 2.0 * ws * (len - L0) / len * (Eigen::Matrix2d::Identity() - g * g.transpose());
+    gradient_.segment<2>(3 * e) -= grad;
+    gradient_.segment<2>(3 * e + 3) += grad;
+    snake_matrix_.block<2, 2>(3 * e, 3 * e) += H;
+    snake_matrix_.block<2, 2>(3 * e + 3, 3 * e + 3) += H;
+    snake_matrix_.block<2, 2>(3 * e, 3 * e + 3) -= H;
+    snake_matrix_.block<2, 2>(3 * e + 3, 3 * e) -= H;
+    if (energy) *energy += ws * (len - L0) * (len - L0);
+  }
+  const double coeff[3] = {1.0, -2.0, 1.0};
+  for (int i = 1; i + 1 < n; ++i) {
+    // Δ²u (the reference's Δ²X cancels in Δ²x − Δ²X).
+    const Eigen::Vector2d b = u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) +
+                              u_.segment<2>(3 * i - 3);
+    for (int a = 0; a < 3; ++a) {
+      gradient_.segment<2>(3 * (i - 1 + a)) += 2.0 * wb * coeff[a] * b;
+      for (int c = 0; c < 3; ++c) {
+        snake_matrix_.block<2, 2>(3 * (i - 1 + a), 3 * (i - 1 + c)).diagonal().array() +=
+            2.0 * wb * coeff[a] * coeff[c];
+      }
+    }
+    if (energy) *energy += wb * b.squaredNorm();
+  }
+}
+
+bool Tracker::newton_step() {
+  const double cutoff = residuals();
+  const int n = model_.num_nodes();
+  if (options_.model == TrackerModel::kBeam) {
+    Eigen::Ref<Eigen::VectorXd> g(gradient_);
+    model_.evaluate(u_, nullptr, &g, &tangent_);
+    gradient_ -= p_ref_;  // elastic forces relative to this repetition's start
+    add_image_term(cutoff);
+    for (int i = 0; i < n; ++i) {
+      tangent_.diagonal(i)(0, 0) += damping_translation_;
+      tangent_.diagonal(i)(1, 1) += damping_translation_;
+      tangent_.diagonal(i)(2, 2) += damping_rotation_;
+    }
+    const auto& fixed = model_.fixed_mask();
+    tangent_.apply_fixed_dofs(fixed);
+    for (Eigen::Index k = 0; k < gradient_.size(); ++k) {
+      if (fixed[k]) gradient_[k] = 0.0;
+    }
+    if (!ldlt_.factor(tangent_)) return false;
+    du_ = -gradient_;
+    ldlt_.solve_in_place(du_);
+  } else {
+    snake_matrix_.setZero();
+    gradient_.setZero();
+    add_snake_term(nullptr);
+    gradient_ -= p_ref_;
+    add_image_term(cutoff);
+    snake_matrix_.diagonal().array() += damping_translation_;
+    for (Eigen::Index k = 0; k < gradient_.size(); ++k) {
+      if (!snake_fixed_[k]) continue;
+      gradient_[k] = 0.0;
+      snake_matrix_.row(k).setZero();
+      snake_matrix_.col(k).setZero();
+      snake_matrix_(k, k) = 1.0;
+    }
+    snake_ldlt_.compute(snake_matrix_);
+    if (snake_ldlt_.info() != Eigen::Success) return false;
+    du_ = -gradient_;
+    snake_ldlt_.solveInPlace(du_);
+  }
+  if (!du_.allFinite()) return false;
+  u_ += du_;
+  return true;
+}
+
+void Tracker::internal_force_at_start() {
+  // Only the bending part is taken relative to the repetition's start: axial and shear strains stay
+  // measured from the reference, so the image forces can bend the beam all the way onto the data
+  // but cannot stretch it along its axis, where edges give no information.
+  p_ref_.setZero();
+  if (options_.model == TrackerModel::kBeam) {
+    // The bending part of p is L₀·M·∂κ/∂u = M·(−e_θ₁ + e_θ₂) per element.
+    for (int e = 0; e < model_.num_elements(); ++e) {
+      const common::BeamStrains h = common::beam_strains(model_.element(e), u_.segment<6>(3 * e));
+      const common::BeamSection& section = model_.description().sections[e];
+      const double M0 = model_.description().prestress.empty()
+                            ? 0.0
+                            : model_.description().prestress[e].M0;
+      const double M = M0 + section.EI * h.kappa;
+      p_ref_[3 * e + 2] -= M;
+      p_ref_[3 * e + 5] += M;
+    }
+  } else {
+    // Snake: the bending term's gradient at the start (the stretching term stays absolute).
+    const int n = model_.num_nodes();
+    const double coeff[3] = {1.0, -2.0, 1.0};
+    for (int i = 1; i + 1 < n; ++i) {
+      const Eigen::Vector2d b = u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) +
+                                u_.segment<2>(3 * i - 3);
+      for (int a = 0; a < 3; ++a) {
+        p_ref_.segment<2>(3 * (i - 1 + a)) += 2.0 * options_.snake_bend_weight * coeff[a] * b;
+      }
+    }
+  }
+}
+
+double Tracker::max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const {
+  double m = 0.0;
+  for (int i = 0; i < model_.num_nodes(); ++i) {
+    m = std::max(m, (a.segment<2>(3 * i) - b.segment<2>(3 * i)).norm());
+  }
+  return m;
+}
+
+FrameSummary Tracker::track(const ImageView& frame) noexcept {
+  const auto t0 = std::chrono::steady_clock::now();
+  FrameSummary summary;
+  auto finish = [&]() {
+    summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return summary;
+  };
+  if (!valid() || !frame.valid()) return finish();
+
+  if (frames_ >= 2 && options_.predict) {
+    u_ = 2.0 * u_prev1_ - u_prev2_;
+  } else if (frames_ >= 1) {
+    u_ = u_prev1_;
+  } else {
+    u_.setZero();
+  }
+
+  bool converged = false, failed = false;
+  for (int rep = 0; rep < options_.max_repetitions && !failed; ++rep) {
+    search(frame);
+    u_start_ = u_;
+    internal_force_at_start();
+    ++summary.repetitions;
+    for (int it = 0; it < options_.max_newton_iterations; ++it) {
+      if (!newton_step()) {
+        failed = true;
+        break;
+      }
+      ++summary.iterations;
+      double step = 0.0;
+      for (int i = 0; i < model_.num_nodes(); ++i) step = std::max(step, du_.segment<2>(3 * i).norm());
+      if (step < 0.1 * options_.convergence_px) break;
+    }
+    if (!failed && max_node_distance(u_, u_start_) < options_.convergence_px) {
+      converged = true;
+      break;
+    }
+  }
+
+  // Final residuals: RMS of the inliers and the fraction of search lines that found one.
+  const double cutoff = failed ? 0.0 : residuals();
+  int inliers = 0, inside = 0;
+  double sum_sq = 0.0;
+  for (std::size_t l = 0; l < lines_.size(); ++l) {
+    float dummy;
+    if (frame.sample(lines_[l].centre.x(), lines_[l].centre.y(), &dummy)) ++inside;
+    if (std::abs(residual_[l]) < cutoff) {
+      ++inliers;
+      sum_sq += double(residual_[l]) * residual_[l];
+    }
+  }
+  summary.search_lines = inside;
+  summary.inlier_fraction = lines_.empty() ? 0.0 : double(inliers) / double(lines_.size());
+  summary.rms_px = inliers > 0 ? std::sqrt(sum_sq / inliers) : 0.0;
+
+  if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction) {
+    summary.status = FrameStatus::kLost;
+    // Keep the last good state and forget the velocity: the next frame searches from there.
+    if (frames_ >= 1) {
+      u_ = u_prev1_;
+    } else {
+      u_.setZero();
+    }
+    u_prev2_ = u_prev1_;
+    return finish();
+  }
+  summary.status = converged ? FrameStatus::kOk : FrameStatus::kNotConverged;
+  u_prev2_ = frames_ >= 1 ? u_prev1_ : u_;
+  u_prev1_ = u_;
+  ++frames_;
+
+  if (options_.model == TrackerModel::kBeam) {
+    Eigen::Ref<Eigen::VectorXd> f(forces_);
+    model_.evaluate(u_, nullptr, &f, nullptr);  // f = p(u_T): the load that holds this shape
+    if (options_.verify_forces) verify(summary);
+    if (!load_nodes_.empty()) fit_loads(summary);
+  }
+  return finish();
+}
+
+void Tracker::verify(FrameSummary& summary) {
+  common::StaticSolverSummary s;
+  if (verify_warm_) {
+    // From the previous frame's verified equilibrium, stepping from its loads to these.
+    s = verify_solver_warm_.solve(forces_, u_verify_, &verify_loads_prev_);
+  }
+  if (!verify_warm_ || !s.converged()) {
+    // From the reference configuration (moved rigidly to the tracked pose of node 0 for free beams).
+    if (model_.rigid_motions_constrained()) {
+      u_verify_.setZero();
+    } else {
+      const double theta = u_[2];
+      const Eigen::Rotation2Dd R(theta);
+      const Eigen::Vector2d X0 = model_.rest_positions().col(0);
+      for (int i = 0; i < model_.num_nodes(); ++i) {
+        const Eigen::Vector2d X = model_.rest_positions().col(i);
+        u_verify_.segment<2>(3 * i) = R * (X - X0) + X0 + u_.segment<2>(0) - X;
+        u_verify_[3 * i + 2] = theta;
+      }
+    }
+    s = verify_solver_.solve(forces_, u_verify_);
+  }
+  summary.verified = s.converged();
+  verify_warm_ = summary.verified && model_.rigid_motions_constrained();
+  if (summary.verified) {
+    verify_loads_prev_ = forces_;
+    summary.verify_px = max_node_distance(u_verify_, u_);
+  }
+}
+
+void Tracker::fit_loads(FrameSummary& summary) {
+  // Gauss–Newton over the loads q at the load nodes: minimise Σ_i |x_i(u(q)) − x_i(u_T)|², u(q)
+  // the equilibrium under those loads alone, ∂u/∂q = K_T⁻¹ E (E scatters q to the dofs), solved on a
+  // subdivided copy of the beam. Components the shape barely determines (an axial force on a nearly
+  // straight beam) are held by a small ridge; each step may move a node by at most 20 px.
+  const int n = model_.num_nodes();
+  const int parts = std::max(1, options_.load_fit_subdivisions);
+  const int params = static_cast<int>(fit_q_.size());
+  const int per_node = options_.fit_moments ? 3 : 2;
+  const auto& fixed = fit_model_.fixed_mask();
+  bool ok = false;
+  for (int it = 0; it < options_.max_load_fit_iterations; ++it) {
+    fit_rhs_.setZero();
+    for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
+      fit_rhs_.segment(3 * parts * load_nodes_[k], per_node) = fit_q_.segment(per_node * k, per_node);
+    }
+    const common::StaticSolverSummary s = fit_solver_.solve(fit_rhs_, u_fit_, &fit_loads_prev_);
+    if (!s.converged()) {
+      // Start over from the unloaded reference next time.
+      u_fit_.setZero();
+      fit_loads_prev_.setZero();
+      fit_q_.setZero();
+      ok = false;
+      break;
+    }
+    fit_loads_prev_ = fit_rhs_;
+    for (int i = 0; i < n; ++i) {
+      fit_residual_.segment<2>(2 * i) = u_fit_.segment<2>(3 * parts * i) - u_.segment<2>(3 * i);
+    }
+    if (ok) break;  // the previous update was negligible: this equilibrium is the answer
+
+    fit_model_.evaluate(u_fit_, nullptr, nullptr, &fit_tangent_);
+    fit_tangent_.apply_fixed_dofs(fixed);
+    if (!fit_factor_.factor(fit_tangent_)) break;
+    for (int j = 0; j < params; ++j) {
+      fit_z_.setZero();
+      const int dof = 3 * parts * load_nodes_[j / per_node] + j % per_node;
+      if (!fixed[dof]) fit_z_[dof] = 1.0;
+      fit_factor_.solve_in_place(fit_z_);
+      for (int i = 0; i < n; ++i) {
+        fit_jacobian_.block<2, 1>(2 * i, j) = fit_z_.segment<2>(3 * parts * i);
+      }
+    }
+    fit_normal_.noalias() = fit_jacobian_.transpose() * fit_jacobian_;
+    fit_g_.noalias() = fit_jacobian_.transpose() * fit_residual_;
+    const double ridge = 1e-6 * fit_normal_.diagonal().maxCoeff() + 1e-300;
+    for (int j = 0; j < params; ++j) fit_normal_(j, j) += ridge;
+    fit_ldlt_.compute(fit_normal_);
+    if (fit_ldlt_.info() != Eigen::Success) break;
+    fit_dq_ = -fit_g_;
+    fit_ldlt_.solveInPlace(fit_dq_);
+    if (!fit_dq_.allFinite()) break;
+    fit_change_.noalias() = fit_jacobian_ * fit_dq_;
+    const double change = fit_change_.cwiseAbs().maxCoeff();
+    if (change > 20.0) fit_dq_ *= 20.0 / change;
+    fit_q_ += fit_dq_;
+    ok = change < 1e-3;
+  }
+  summary.loads_fitted = ok;
+  fitted_loads_.setZero();
+  for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
+    fitted_loads_.segment(3 * load_nodes_[k], per_node) = fit_q_.segment(per_node * k, per_node);
+  }
+  summary.load_fit_rms_px = std::sqrt(fit_residual_.squaredNorm() / n);
+}
+
+}  // namespace sinew::rt

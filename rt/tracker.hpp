@@ -1,0 +1,215 @@
+#pragma once
+/// The real-time beam tracker (seed 000 §4): per frame, predict the state from the previous two
+/// frames, search for image observations along the normals of the model's Hermite centreline, and
+/// take Tukey-weighted Newton steps (K_T + ∇FᵀW∇F) du = −(∇FᵀW F + p(u) − p(u_r)) (eq. 10),
+/// repeating whole minimisations until the model stops moving. Each repetition r measures elastic
+/// forces relative to its own start u_r, so the image forces can pull the model all the way onto the
+/// data while the beam keeps each step physically plausible; the total displacement u_T is the sum.
+/// Then the applied nodal loads f = p(u_T) (the seed's −p sign for the reaction) are recovered and
+/// verified by a forward static solve, and, when load nodes are named, the loads at those nodes only
+/// are fitted so that the equilibrium shape matches the tracked one (a well-posed estimate).
+///
+/// Real-time contract: all memory is sized at construction; track() never allocates, throws or
+/// prints, and its work is bounded by max_repetitions x max_newton_iterations.
+
+#include <Eigen/Core>
+#include <Eigen/Dense>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/beam/beam_model.hpp"
+#include "common/beam/block_tridiagonal.hpp"
+#include "common/beam/static_solver.hpp"
+#include "rt/centreline.hpp"
+#include "rt/observation.hpp"
+
+namespace sinew::rt {
+
+/// Which deformation model regularises the fit.
+enum class TrackerModel {
+  kBeam,   ///< the nonlinear Timoshenko beam (the seed's method)
+  kSnake,  ///< the seed's §5.2 baseline: stretching + bending weights on a polyline
+};
+
+struct TrackerOptions {
+  TrackerModel model = TrackerModel::kBeam;
+  ObservationMode observation = ObservationMode::kEdge;
+  /// kEdge: half the object's width in pixels (its boundaries sit at ±half_width_px), > 0.
+  double half_width_px = 0.0;
+  /// kEdge: intensity step polarity; kAny also accepts clutter of the opposite polarity.
+  EdgePolarity polarity = EdgePolarity::kAny;
+  /// Sample points per element (each gives one search line, two in edge mode), ≥ 1.
+  int samples_per_element = 8;
+  /// Search ±range pixels along the normal around the predicted model, ≥ 1. Larger tolerates
+  /// faster motion and worse prediction; costs linearly.
+  int search_range_px = 10;
+  /// Strongest responses kept per search line; the one nearest the model is used, ≥ 1.
+  int max_candidates = 3;
+  /// Weakest response accepted: grey levels per pixel (edges) or grey levels (lines), > 0.
+  double min_strength = 8.0;
+  /// Line modes: distance of the surround samples; 0 picks round(line half-width + 1.5) = 3 px.
+  int line_surround_px = 0;
+  /// Profile averaged over ±band_px pixels along the tangent (noise ÷ √(2·band + 1)), ≥ 0.
+  int band_px = 1;
+  /// Image term weight relative to the elements' bending stiffness 12·EI/L₀³, > 0. Higher fits in
+  /// fewer repetitions; lower regularises more per repetition.
+  double image_stiffness = 1.0;
+  /// Repeated minimisations per frame (bound), ≥ 1.
+  int max_repetitions = 12;
+  /// Newton iterations per minimisation (bound), ≥ 1.
+  int max_newton_iterations = 3;
+  /// A frame has converged when a repetition moves no node more than this, pixels, > 0.
+  double convergence_px = 0.02;
+  /// Tukey's constant in units of the robust residual scale (4.685: 95 % efficiency), > 0.
+  double tukey_c = 4.685;
+  /// Floor of the robust residual scale (1.4826·median|d|), pixels, > 0.
+  double min_sigma_px = 0.4;
+  /// Below this fraction of search lines with an inlier the frame is reported lost, [0, 1].
+  double min_inlier_fraction = 0.25;
+  /// Predict from the last two frames (constant velocity); otherwise start from the last frame.
+  bool predict = true;
+  /// Verify the recovered per-node forces by a forward static solve (seed 000 §4).
+  bool verify_forces = true;
+  /// Load increments of a verification solve started from the reference configuration, ≥ 1.
+  int verify_load_steps = 24;
+  /// Snake baseline weights (seed 000 §5.2): stretching and bending, relative to the image term.
+  double snake_stretch_weight = 1000.0;
+  double snake_bend_weight = 1000.0;
+  /// Load fit (when load nodes are given): Gauss–Newton iterations per frame, ≥ 1.
+  int max_load_fit_iterations = 6;
+  /// Load fit: also fit a moment at each load node. Off by default: a contact (a whisker touching
+  /// a pole, a pushed tip) transmits a force, and a free moment trades off against the force.
+  bool fit_moments = false;
+  /// Load fit: sub-elements per element of the beam the loads are fitted on (its O(h²) error would
+  /// otherwise read as a load error of a few per cent), ≥ 1.
+  int load_fit_subdivisions = 4;
+
+  /// Empty when valid; otherwise one line naming the field, its value and the constraint.
+  std::optional<std::string> validate() const;
+};
+
+enum class FrameStatus { kOk, kLost, kNotConverged };
+const char* to_string(FrameStatus status);
+
+/// Plain data about one tracked frame.
+struct FrameSummary {
+  FrameStatus status = FrameStatus::kLost;
+  int repetitions = 0;          ///< minimisations run
+  int iterations = 0;           ///< Newton iterations over all repetitions
+  int search_lines = 0;         ///< search lines inside the image
+  double rms_px = 0.0;          ///< RMS image residual of the inliers at the end, pixels
+  double inlier_fraction = 0.0; ///< search lines with an inlier observation / all search lines
+  bool verified = false;        ///< a verification solve ran and converged
+  double verify_px = 0.0;       ///< largest node distance between the verification and the fit
+  bool loads_fitted = false;    ///< the load-node fit ran and converged
+  double load_fit_rms_px = 0.0; ///< RMS node distance between the fitted equilibrium and the fit
+  double seconds = 0.0;         ///< wall time of track()
+};
+
+class Tracker {
+ public:
+  /// beam: the reference configuration is the polyline on the first frame (pixels). load_nodes:
+  /// nodes where loads are fitted (needs fixed dofs that constrain rigid motion). Check valid().
+  Tracker(common::BeamDescription beam, TrackerOptions options, std::vector<int> load_nodes = {});
+
+  bool valid() const { return error_.empty(); }
+  const std::string& error() const { return error_; }
+  const common::BeamModel& model() const { return model_; }
+  const TrackerOptions& options() const { return options_; }
+  int num_nodes() const { return model_.num_nodes(); }
+
+  /// Tracks one frame. Never allocates, throws or prints.
+  FrameSummary track(const ImageView& frame) noexcept;
+
+  /// Forgets the motion history: the next frame starts from the last state without velocity.
+  void reset_motion() noexcept;
+
+  /// State u = [ux, uy, θ] per node relative to the reference (first-frame) polyline.
+  const Eigen::VectorXd& state() const { return u_; }
+  /// Current node position (pixels).
+  Eigen::Vector2d node_position(int i) const {
+    return model_.rest_positions().col(i) + u_.segment<2>(3 * i);
+  }
+  /// Per-node applied loads f = p(u_T) [fx, fy, m] (the seed's forces, sign: load on the beam).
+  const Eigen::VectorXd& forces() const { return forces_; }
+  /// Loads fitted at the load nodes (zeros elsewhere); zero when no load nodes were given.
+  const Eigen::VectorXd& fitted_loads() const { return fitted_loads_; }
+  const std::vector<int>& load_nodes() const { return load_nodes_; }
+  /// Node positions of the verification solve (valid when the summary says verified).
+  const Eigen::VectorXd& verification_state() const { return u_verify_; }
+
+ private:
+  struct SearchLine {
+    int element = 0;
+    float xi = 0.0f;
+    float side = 0.0f;  // −1, +1 (edge boundaries) or 0 (line centre)
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+    int num_candidates = 0;
+  };
+
+  // Model curve of an element at u_: Hermite (beam) or straight chord (snake).
+  CentrelinePoint centreline(int element, double xi) const;
+  void search(const ImageView& frame);
+  // Residuals of all search lines at u_ (nearest candidate) and their Jacobian rows; returns the
+  // robust Tukey cut-off tukey_c · max(1.4826·median|d|, min_sigma_px).
+  double residuals();
+  // Adds the Tukey-weighted image term (Gauss–Newton) to the system and gradient_.
+  void add_image_term(double cutoff);
+  // Adds the snake energy's gradient and (PSD) Hessian at u_ to gradient_ and snake_matrix_.
+  void add_snake_term(double* energy);
+  // p_ref_ = the model's elastic force at u_ (start of a repetition).
+  void internal_force_at_start();
+  bool newton_step();
+  double max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
+  void verify(FrameSummary& summary);
+  void fit_loads(FrameSummary& summary);
+
+  common::BeamModel model_;
+  TrackerOptions options_;
+  std::vector<int> load_nodes_;
+  std::string error_;
+  ProfileSearch profile_search_;
+  int sides_ = 1;
+  double observation_weight_ = 0.0;
+  double damping_translation_ = 0.0, damping_rotation_ = 0.0;
+  int frames_ = 0;
+
+  // Per-frame workspace, sized at construction.
+  std::vector<SearchLine> lines_;
+  std::vector<Candidate> candidates_;  // lines_.size() x max_candidates
+  std::vector<float> residual_;        // per line, NaN when it has no candidate
+  std::vector<float> sorted_;          // scratch for the median
+  std::vector<float> scratch_;
+  std::vector<common::Vector6d> jacobian_rows_;  // ∂d/∂u_e per line
+  Eigen::VectorXd u_, u_prev1_, u_prev2_, u_start_, p_ref_, gradient_, du_, forces_;
+  Eigen::VectorXd fitted_loads_;
+  common::BlockTridiagonal tangent_;
+  common::BlockTridiagonalLdlt ldlt_;
+  // Snake baseline: dense system (its bending term couples nodes i−1 and i+1).
+  Eigen::MatrixXd snake_matrix_;
+  Eigen::LDLT<Eigen::MatrixXd> snake_ldlt_;
+  std::vector<unsigned char> snake_fixed_;
+
+  // Verification.
+  common::BeamModel verify_model_;
+  common::StaticBeamSolver verify_solver_;
+  common::StaticBeamSolver verify_solver_warm_;
+  Eigen::VectorXd u_verify_, verify_loads_prev_;
+  bool verify_warm_ = false;
+
+  // Load fit, on the beam with every element subdivided.
+  common::BeamModel fit_model_;
+  common::StaticBeamSolver fit_solver_;
+  Eigen::VectorXd u_fit_, fit_loads_prev_, fit_rhs_, fit_residual_, fit_z_;
+  Eigen::MatrixXd fit_jacobian_;  // 2n x (2 or 3)k: node displacements per load parameter
+  Eigen::VectorXd fit_change_;
+  Eigen::VectorXd fit_q_, fit_dq_, fit_g_;
+  Eigen::MatrixXd fit_normal_;
+  Eigen::LDLT<Eigen::MatrixXd> fit_ldlt_;
+  common::BlockTridiagonal fit_tangent_;
+  common::BlockTridiagonalLdlt fit_factor_;
+};
+
+}  // namespace sinew::rt

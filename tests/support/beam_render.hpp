@@ -1,0 +1,76 @@
+#pragma once
+/// A small renderer for rt tests: draws a beam's centreline (a dense polyline) as a dark band or line
+/// on a bright background with a 1-px anti-aliasing ramp, plus optional Gaussian noise. Tests use it
+/// to make frames with known truth without OpenCV.
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "common/beam/beam_model.hpp"
+#include "rt/centreline.hpp"
+#include "rt/image_view.hpp"
+
+namespace sinew::testing {
+
+struct GreyImage {
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> pixels;
+  GreyImage(int w, int h, std::uint8_t value) : width(w), height(h), pixels(std::size_t(w) * h, value) {}
+  rt::ImageView view() const { return {pixels.data(), width, height, width}; }
+};
+
+/// Dense points along a beam state's Hermite centreline (the true continuous shape when the state
+/// comes from a fine static solve).
+inline std::vector<Eigen::Vector2d> centreline_points(const common::BeamModel& model,
+                                                      const Eigen::VectorXd& u, int per_element) {
+  std::vector<Eigen::Vector2d> pts;
+  for (int e = 0; e < model.num_elements(); ++e) {
+    for (int k = 0; k < per_element; ++k) {
+      pts.push_back(rt::hermite_centreline(model.rest_positions().col(e), model.element(e),
+                                           u.segment<6>(3 * e), double(k) / per_element)
+                        .position);
+    }
+  }
+  const int last = model.num_elements() - 1;
+  pts.push_back(rt::hermite_centreline(model.rest_positions().col(last), model.element(last),
+                                       u.segment<6>(3 * last), 1.0)
+                    .position);
+  return pts;
+}
+
+/// Draws the band {distance to the polyline ≤ half_width} with grey level `ink`.
+inline void draw_band(GreyImage& img, const std::vector<Eigen::Vector2d>& pts, double half_width,
+                      std::uint8_t ink) {
+  Eigen::Vector2d lo = pts[0], hi = pts[0];
+  for (const auto& p : pts) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const int x0 = std::max(0, int(lo.x() - half_width - 2)), x1 = std::min(img.width - 1, int(hi.x() + half_width + 2));
+  const int y0 = std::max(0, int(lo.y() - half_width - 2)), y1 = std::min(img.height - 1, int(hi.y() + half_width + 2));
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const Eigen::Vector2d q(x, y);
+      double best = 1e30;
+      for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
+        const Eigen::Vector2d a = pts[k], ab = pts[k + 1] - pts[k];
+        const double t = std::clamp((q - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+        best = std::min(best, (a + t * ab - q).squaredNorm());
+      }
+      const double cover = std::clamp(half_width + 0.5 - std::sqrt(best), 0.0, 1.0);
+      std::uint8_t& v = img.pixels[std::size_t(y) * img.width + x];
+      v = static_cast<std::uint8_t>(std::lround(v + cover * (ink - double(v))));
+    }
+  }
+}
+
+inline void add_noise(GreyImage& img, double sigma, std::mt19937& gen) {
+  std::normal_distribution<double> n(0.0, sigma);
+  for (auto& v : img.pixels) v = static_cast<std::uint8_t>(std::clamp(std::lround(v + n(gen)), 0L, 255L));
+}
+
+}  // namespace sinew::testing

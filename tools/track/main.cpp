@@ -1,0 +1,398 @@
+// sinew-track: tracks a beam-like object through a video and recovers the forces that bend it.
+//   sinew-track --input <video | image | folder | pattern%04d.png> --init init.json --out results.jsonl
+//               [--overlay <folder | file.mp4>] [--stride K] [--first N] [--count M]
+//               [--model beam|snake] [--truth truth.jsonl]
+// One JSON line per processed frame: {"frame", "status", "nodes": [[x, y, θ]], "forces": [[fx, fy, m]],
+// "rms_px", "verify_px", "iterations", "latency_us", ...}. Exit status: 0 done, 2 bad input.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "rt/tracker.hpp"
+#include "tools/io/beam_json.hpp"
+#include "tools/track/frame_source.hpp"
+
+namespace {
+
+using namespace sinew;
+
+struct TrackInit {
+  common::BeamDescription beam;
+  rt::TrackerOptions options;
+  std::vector<int> load_nodes;
+};
+
+TrackInit read_init(const std::string& path) {
+  const nlohmann::json doc = tools::read_json_file(path);
+  const tools::JsonCursor root(doc, path);
+  root.expect_keys({"nodes", "fixed", "material", "observation", "half_width_px", "load_nodes",
+                    "options"});
+  TrackInit init;
+  init.beam = tools::parse_beam_description(root);
+  const tools::JsonCursor obs = root.at("observation");
+  const std::string mode = obs.string();
+  if (mode == "edge") {
+    init.options.observation = rt::ObservationMode::kEdge;
+  } else if (mode == "dark_line") {
+    init.options.observation = rt::ObservationMode::kDarkLine;
+  } else if (mode == "bright_line") {
+    init.options.observation = rt::ObservationMode::kBrightLine;
+  } else {
+    obs.fail("= \"" + mode + "\" must be \"edge\", \"dark_line\" or \"bright_line\"");
+  }
+  if (root.has("half_width_px")) {
+    init.options.half_width_px = root.at("half_width_px").positive_number();
+  } else if (mode == "edge") {
+    throw tools::InputError(path + ": missing required field 'half_width_px' (edge mode)");
+  }
+  const int n = static_cast<int>(init.beam.rest_positions.cols());
+  if (root.has("load_nodes")) {
+    const tools::JsonCursor ln = root.at("load_nodes");
+    for (std::size_t k = 0; k < ln.array_size(); ++k) {
+      const long node = ln.at(k).integer();
+      if (node < 0 || node >= n) {
+        ln.at(k).fail("= " + std::to_string(node) + " is out of range (the beam has " +
+                      std::to_string(n) + " nodes)");
+      }
+      init.load_nodes.push_back(static_cast<int>(node));
+    }
+  }
+  if (root.has("options")) {
+    const tools::JsonCursor o = root.at("options");
+    auto& t = init.options;
+    const std::map<std::string, double*> reals = {
+        {"min_strength", &t.min_strength},       {"image_stiffness", &t.image_stiffness},
+        {"convergence_px", &t.convergence_px},   {"tukey_c", &t.tukey_c},
+        {"min_sigma_px", &t.min_sigma_px},       {"min_inlier_fraction", &t.min_inlier_fraction},
+        {"snake_stretch_weight", &t.snake_stretch_weight},
+        {"snake_bend_weight", &t.snake_bend_weight}};
+    const std::map<std::string, int*> integers = {
+        {"samples_per_element", &t.samples_per_element},
+        {"search_range_px", &t.search_range_px},
+        {"max_candidates", &t.max_candidates},
+        {"line_surround_px", &t.line_surround_px},
+        {"band_px", &t.band_px},
+        {"max_repetitions", &t.max_repetitions},
+        {"max_newton_iterations", &t.max_newton_iterations},
+        {"verify_load_steps", &t.verify_load_steps},
+        {"max_load_fit_iterations", &t.max_load_fit_iterations}};
+    std::vector<std::string> keys = {"predict", "verify_forces", "polarity"};
+    for (const auto& kv : reals) keys.push_back(kv.first);
+    for (const auto& kv : integers) keys.push_back(kv.first);
+    o.expect_keys(keys);
+    for (const auto& [key, field] : reals) {
+      if (o.has(key)) *field = o.at(key).finite_number();
+    }
+    for (const auto& [key, field] : integers) {
+      if (o.has(key)) *field = static_cast<int>(o.at(key).integer());
+    }
+    if (o.has("predict")) t.predict = o.at("predict").boolean();
+    if (o.has("verify_forces")) t.verify_forces = o.at("verify_forces").boolean();
+    if (o.has("polarity")) {
+      const std::string p = o.at("polarity").string();
+      if (p == "any") {
+        t.polarity = rt::EdgePolarity::kAny;
+      } else if (p == "dark_object") {
+        t.polarity = rt::EdgePolarity::kDarkObject;
+      } else if (p == "bright_object") {
+        t.polarity = rt::EdgePolarity::kBrightObject;
+      } else {
+        o.at("polarity").fail("must be \"any\", \"dark_object\" or \"bright_object\"");
+      }
+    }
+  }
+  if (auto err = init.options.validate()) throw tools::InputError(path + ": " + *err);
+  return init;
+}
+
+struct TruthFrame {
+  Eigen::MatrixXd nodes;  // n x 3
+  Eigen::MatrixXd loads;  // n x 3
+  bool visible = true;
+};
+
+std::map<int, TruthFrame> read_truth(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw tools::InputError(path + ": cannot open file for reading");
+  std::map<int, TruthFrame> truth;
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty()) continue;
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(line);
+    } catch (const nlohmann::json::exception& e) {
+      throw tools::InputError(path + ":" + std::to_string(line_no) + ": invalid JSON");
+    }
+    const tools::JsonCursor c(j, path + ":" + std::to_string(line_no));
+    TruthFrame t;
+    const auto nodes = c.at("nodes");
+    t.nodes.resize(nodes.array_size(), 3);
+    t.loads = Eigen::MatrixXd::Zero(nodes.array_size(), 3);
+    for (std::size_t i = 0; i < nodes.array_size(); ++i) {
+      for (std::size_t k = 0; k < 3; ++k) t.nodes(i, k) = nodes.at(i).at(k).finite_number();
+    }
+    if (c.has("loads")) {
+      const auto loads = c.at("loads");
+      for (std::size_t i = 0; i < loads.array_size() && i < nodes.array_size(); ++i) {
+        for (std::size_t k = 0; k < 3; ++k) t.loads(i, k) = loads.at(i).at(k).finite_number();
+      }
+    }
+    if (c.has("visible")) t.visible = c.at("visible").boolean();
+    truth[static_cast<int>(c.at("frame").integer())] = t;
+  }
+  return truth;
+}
+
+void draw_arrow(cv::Mat& img, const Eigen::Vector2d& from, const Eigen::Vector2d& vec,
+                const cv::Scalar& colour) {
+  const cv::Point2d a(from.x(), from.y()), b(from.x() + vec.x(), from.y() + vec.y());
+  cv::arrowedLine(img, a, b, colour, 2, cv::LINE_AA, 0, 0.25);
+}
+
+void draw_overlay(cv::Mat& img, const rt::Tracker& tracker, const rt::FrameSummary& s, int frame) {
+  const auto& model = tracker.model();
+  const Eigen::VectorXd& u = tracker.state();
+  const cv::Scalar curve_colour = s.status == rt::FrameStatus::kLost ? cv::Scalar(0, 0, 255)
+                                                                     : cv::Scalar(0, 230, 255);
+  for (int e = 0; e < model.num_elements(); ++e) {
+    cv::Point2d prev;
+    for (int k = 0; k <= 10; ++k) {
+      const rt::CentrelinePoint p = rt::hermite_centreline(model.rest_positions().col(e),
+                                                           model.element(e), u.segment<6>(3 * e),
+                                                           k / 10.0);
+      const cv::Point2d q(p.position.x(), p.position.y());
+      if (k > 0) cv::line(img, prev, q, curve_colour, 2, cv::LINE_AA);
+      prev = q;
+    }
+  }
+  for (int i = 0; i < model.num_nodes(); ++i) {
+    const Eigen::Vector2d x = tracker.node_position(i);
+    cv::circle(img, cv::Point2d(x.x(), x.y()), 3, cv::Scalar(255, 255, 255), -1, cv::LINE_AA);
+  }
+  // Forces as arrows: directions, scaled so the largest is 60 px (the seed's Fig. 1 and 4).
+  auto draw_forces = [&](const Eigen::VectorXd& f, const cv::Scalar& colour) {
+    double fmax = 0.0;
+    for (int i = 0; i < model.num_nodes(); ++i) fmax = std::max(fmax, f.segment<2>(3 * i).norm());
+    if (!(fmax > 0.0)) return;
+    for (int i = 0; i < model.num_nodes(); ++i) {
+      const Eigen::Vector2d v = f.segment<2>(3 * i) * (60.0 / fmax);
+      if (v.norm() > 2.0) draw_arrow(img, tracker.node_position(i), v, colour);
+    }
+  };
+  if (!tracker.load_nodes().empty()) {
+    draw_forces(tracker.fitted_loads(), cv::Scalar(60, 220, 60));
+  } else {
+    draw_forces(tracker.forces(), cv::Scalar(40, 40, 255));
+  }
+  char text[200];
+  std::snprintf(text, sizeof text, "frame %d  %s  rms %.2f px  verify %.2f px  %.0f us", frame,
+                rt::to_string(s.status), s.rms_px, s.verify_px, s.seconds * 1e6);
+  cv::putText(img, text, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(0, 0, 0), 3,
+              cv::LINE_AA);
+  cv::putText(img, text, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+              cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+}
+
+nlohmann::json rows3(const Eigen::VectorXd& v, int n) {
+  nlohmann::json a = nlohmann::json::array();
+  for (int i = 0; i < n; ++i) a.push_back({v[3 * i], v[3 * i + 1], v[3 * i + 2]});
+  return a;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(std::floor(q * (v.size() - 1) + 0.5)));
+  return v[k];
+}
+
+struct Args {
+  std::string input, init, out, overlay, model = "beam", truth;
+  int stride = 1, first = 0, count = -1;
+  bool quiet = false;
+};
+
+int run(const Args& args) {
+  TrackInit init = read_init(args.init);
+  if (args.model == "snake") init.options.model = rt::TrackerModel::kSnake;
+  const std::map<int, TruthFrame> truth = args.truth.empty() ? std::map<int, TruthFrame>{}
+                                                             : read_truth(args.truth);
+  tools::FrameSource source(args.input, args.first, args.stride, args.count);
+
+  rt::Tracker tracker(init.beam, init.options,
+                      init.options.model == rt::TrackerModel::kBeam ? init.load_nodes
+                                                                    : std::vector<int>{});
+  if (!tracker.valid()) throw tools::InputError(args.init + ": " + tracker.error());
+  const int n = tracker.num_nodes();
+
+  std::ofstream out(args.out + ".tmp");
+  if (!out) throw tools::InputError(args.out + ": cannot open file for writing");
+  cv::VideoWriter video;
+  const bool overlay_video = !args.overlay.empty() &&
+                             (args.overlay.size() > 4 &&
+                              (args.overlay.substr(args.overlay.size() - 4) == ".mp4" ||
+                               args.overlay.substr(args.overlay.size() - 4) == ".avi"));
+  if (!args.overlay.empty() && !overlay_video) std::filesystem::create_directories(args.overlay);
+
+  std::vector<double> latencies, errors, load_errors;
+  std::map<std::string, int> statuses;
+  cv::Mat grey, colour;
+  int index = 0, processed = 0;
+  while (source.next(grey, index)) {
+    if (processed == 0) {
+      // The init polyline must lie on the first processed frame.
+      for (int i = 0; i < n; ++i) {
+        const Eigen::Vector2d X = init.beam.rest_positions.col(i);
+        if (X.x() < 0 || X.y() < 0 || X.x() > grey.cols - 1 || X.y() > grey.rows - 1) {
+          throw tools::InputError(args.init + ": nodes[" + std::to_string(i) + "] = [" +
+                                  std::to_string(X.x()) + ", " + std::to_string(X.y()) +
+                                  "] is outside the first frame (" + std::to_string(grey.cols) +
+                                  "x" + std::to_string(grey.rows) + ")");
+        }
+      }
+    }
+    const rt::ImageView view{grey.ptr<std::uint8_t>(), grey.cols, grey.rows,
+                             static_cast<std::ptrdiff_t>(grey.step[0])};
+    const rt::FrameSummary s = tracker.track(view);
+    latencies.push_back(s.seconds * 1e6);
+    ++statuses[rt::to_string(s.status)];
+
+    nlohmann::json line;
+    line["frame"] = index;
+    line["status"] = rt::to_string(s.status);
+    nlohmann::json nodes = nlohmann::json::array();
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d x = tracker.node_position(i);
+      nodes.push_back({x.x(), x.y(), tracker.state()[3 * i + 2]});
+    }
+    line["nodes"] = nodes;
+    line["forces"] = rows3(init.load_nodes.empty() || init.options.model == rt::TrackerModel::kSnake
+                               ? tracker.forces()
+                               : tracker.fitted_loads(),
+                           n);
+    if (!init.load_nodes.empty()) line["node_forces"] = rows3(tracker.forces(), n);
+    line["rms_px"] = s.rms_px;
+    line["verify_px"] = s.verified ? nlohmann::json(s.verify_px) : nlohmann::json(nullptr);
+    line["iterations"] = s.iterations;
+    line["repetitions"] = s.repetitions;
+    line["inlier_fraction"] = s.inlier_fraction;
+    line["latency_us"] = s.seconds * 1e6;
+    if (!init.load_nodes.empty()) line["load_fit_rms_px"] = s.load_fit_rms_px;
+
+    const auto t = truth.find(index);
+    if (t != truth.end() && t->second.nodes.rows() == n) {
+      double sum = 0.0;
+      for (int i = 0; i < n; ++i) {
+        sum += (tracker.node_position(i) - t->second.nodes.row(i).head<2>().transpose()).squaredNorm();
+      }
+      const double err = std::sqrt(sum / n);
+      line["error_px"] = err;
+      errors.push_back(err);
+      if (!init.load_nodes.empty() && init.options.model == rt::TrackerModel::kBeam) {
+        Eigen::Vector2d applied = Eigen::Vector2d::Zero(), fitted = Eigen::Vector2d::Zero();
+        for (int node : init.load_nodes) {
+          applied += t->second.loads.row(node).head<2>().transpose();
+          fitted += tracker.fitted_loads().segment<2>(3 * node);
+        }
+        if (applied.norm() > 0) {
+          const double rel = (fitted - applied).norm() / applied.norm();
+          line["load_error"] = rel;
+          load_errors.push_back(rel);
+        }
+      }
+    }
+    out << line.dump() << "\n";
+
+    if (!args.overlay.empty()) {
+      cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
+      draw_overlay(colour, tracker, s, index);
+      if (overlay_video) {
+        if (!video.isOpened()) {
+          video.open(args.overlay, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 30.0, colour.size());
+          if (!video.isOpened()) throw tools::InputError(args.overlay + ": cannot write a video here");
+        }
+        video.write(colour);
+      } else {
+        char name[64];
+        std::snprintf(name, sizeof name, "/overlay_%05d.png", index);
+        cv::imwrite(args.overlay + name, colour);
+      }
+    }
+    ++processed;
+    if (!args.quiet && processed % 50 == 0) {
+      std::cerr << "sinew-track: " << processed << " frames, last " << rt::to_string(s.status)
+                << ", median latency " << percentile(latencies, 0.5) << " us\n";
+    }
+  }
+  out.close();
+  if (processed == 0) {
+    std::filesystem::remove(args.out + ".tmp");
+    throw tools::InputError(args.input + ": no frame to process (check --first/--count)");
+  }
+  std::filesystem::rename(args.out + ".tmp", args.out);
+
+  if (!args.quiet) {
+    std::cout << "sinew-track: " << processed << " frames from " << source.description() << " ("
+              << (init.options.model == rt::TrackerModel::kBeam ? "beam" : "snake") << " model)\n";
+    std::cout << "  status:";
+    for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
+    std::cout << "\n  latency per frame: median " << percentile(latencies, 0.5) << " us, p99 "
+              << percentile(latencies, 0.99) << " us\n";
+    if (!errors.empty()) {
+      double mean = 0.0;
+      for (double e : errors) mean += e;
+      std::cout << "  node RMS error vs truth: mean " << mean / errors.size() << " px, max "
+                << *std::max_element(errors.begin(), errors.end()) << " px\n";
+    }
+    if (!load_errors.empty()) {
+      std::cout << "  fitted load error vs truth: median " << percentile(load_errors, 0.5) * 100
+                << " %, max " << *std::max_element(load_errors.begin(), load_errors.end()) * 100
+                << " %\n";
+    }
+    std::cout << "  results: " << args.out << "\n";
+    if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Track a beam-like object through frames and recover its forces (Sinew)"};
+  Args args;
+  app.add_option("--input", args.input, "video file, image, folder of images or printf pattern")
+      ->required();
+  app.add_option("--init", args.init, "init.json: polyline on the first frame, material, ...")
+      ->required();
+  app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)")->required();
+  app.add_option("--overlay", args.overlay, "folder for overlay PNGs, or a .mp4/.avi file");
+  app.add_option("--stride", args.stride, "process every K-th frame")->check(CLI::PositiveNumber);
+  app.add_option("--first", args.first, "index of the first frame to process")->check(CLI::NonNegativeNumber);
+  app.add_option("--count", args.count, "number of frames to process (default: all)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--model", args.model, "beam (default) or snake (the seed's baseline)")
+      ->check(CLI::IsMember({"beam", "snake"}));
+  app.add_option("--truth", args.truth, "truth.jsonl from sinew-synth: report errors against it");
+  app.add_flag("--quiet", args.quiet, "print nothing but errors");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  try {
+    return run(args);
+  } catch (const std::exception& e) {
+    std::cerr << "sinew-track: " << e.what() << "\n";
+    return 2;
+  }
+}
