@@ -1,0 +1,206 @@
+// Proof of the real-time contract: after the first frame, Tracker::track() performs no heap
+// allocation, over hundreds of frames that exercise every path: good frames, an occluded stretch,
+// frames without the object (lost), frames that hit the iteration bounds (not converged), the
+// force verification, the load-node fit and the snake baseline.
+//
+// Two independent guards: counters on malloc/calloc/realloc and on global operator new (OpenCV or
+// glibc allocations would bypass operator new), and Eigen's EIGEN_RUNTIME_NO_MALLOC assertion (this
+// test compiles the tracker's sources itself with that macro and with assertions on).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "common/beam/static_solver.hpp"
+#include "rt/tracker.hpp"
+#include "tests/support/beam_render.hpp"
+
+extern "C" {
+void* __libc_malloc(std::size_t);
+void* __libc_calloc(std::size_t, std::size_t);
+void* __libc_realloc(void*, std::size_t);
+void __libc_free(void*);
+}
+
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_mallocs{0};
+std::atomic<long> g_news{0};
+}  // namespace
+
+extern "C" void* malloc(std::size_t n) {
+  if (g_counting.load(std::memory_order_relaxed)) ++g_mallocs;
+  return __libc_malloc(n);
+}
+extern "C" void* calloc(std::size_t n, std::size_t m) {
+  if (g_counting.load(std::memory_order_relaxed)) ++g_mallocs;
+  return __libc_calloc(n, m);
+}
+extern "C" void* realloc(void* p, std::size_t n) {
+  if (g_counting.load(std::memory_order_relaxed)) ++g_mallocs;
+  return __libc_realloc(p, n);
+}
+extern "C" void free(void* p) { __libc_free(p); }
+
+void* operator new(std::size_t n) {
+  if (g_counting.load(std::memory_order_relaxed)) ++g_news;
+  if (void* p = __libc_malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) {
+  if (g_counting.load(std::memory_order_relaxed)) ++g_news;
+  if (void* p = __libc_malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { __libc_free(p); }
+void operator delete[](void* p) noexcept { __libc_free(p); }
+void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
+
+namespace sinew::rt {
+namespace {
+
+using sinew::testing::GreyImage;
+
+struct Frames {
+  std::vector<GreyImage> bent;      // load levels 0..levels-1
+  std::vector<GreyImage> occluded;  // same, with a block over the middle of the beam
+  GreyImage empty{320, 240, 200};   // no object: lost
+};
+
+common::BeamDescription cantilever(int per) {
+  const int n = 8 * per + 1;
+  Eigen::Matrix2Xd X(2, n);
+  for (int i = 0; i < n; ++i) X.col(i) << 60.0 + 200.0 * i / (n - 1), 60.0;
+  auto d = common::BeamDescription::uniform(X, {1000.0, 1000.0 / 2.6, 6.0, 18.0});
+  d.clamp(0);
+  return d;
+}
+
+Frames render(int levels) {
+  Frames frames;
+  const common::BeamModel fine(cantilever(4));
+  common::StaticBeamSolver solver(fine);
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(fine.num_dofs()), f = u, f_prev = u;
+  std::mt19937 gen(3);
+  for (int k = 0; k < levels; ++k) {
+    f.setZero();
+    f[fine.num_dofs() - 2] = 0.6 * k / (levels - 1);
+    EXPECT_TRUE(solver.solve(f, u, &f_prev).converged());
+    f_prev = f;
+    GreyImage img(320, 240, 200);
+    sinew::testing::draw_band(img, sinew::testing::centreline_points(fine, u, 8), 3.0, 60);
+    GreyImage occ = img;
+    for (int y = 40; y < 200; ++y) {
+      for (int x = 130; x < 180; ++x) occ.pixels[y * 320 + x] = 120;
+    }
+    sinew::testing::add_noise(img, 6.0, gen);
+    sinew::testing::add_noise(occ, 6.0, gen);
+    frames.bent.push_back(std::move(img));
+    frames.occluded.push_back(std::move(occ));
+  }
+  return frames;
+}
+
+// Frame k of the test sequence: ping-pong through the load levels, occluded for a stretch, and
+// empty (object gone) for a few frames.
+const GreyImage& frame(const Frames& f, int k) {
+  const int levels = static_cast<int>(f.bent.size());
+  const int period = 2 * (levels - 1);
+  const int phase = k % period;
+  const int level = phase < levels ? phase : period - phase;
+  if (k % 97 >= 90) return f.empty;
+  if (k % 61 >= 45) return f.occluded[level];
+  return f.bent[level];
+}
+
+struct Counts {
+  long mallocs = 0, news = 0;
+  int ok = 0, lost = 0, not_converged = 0, verified = 0, fitted = 0;
+};
+
+Counts run(Tracker& tracker, const Frames& frames, int count) {
+  Counts c;
+  tracker.track(frames.bent[0].view());  // the first frame may warm up lazily (none does today)
+  g_mallocs = 0;
+  g_news = 0;
+  Eigen::internal::set_is_malloc_allowed(false);
+  g_counting = true;
+  for (int k = 1; k < count; ++k) {
+    const FrameSummary s = tracker.track(frame(frames, k).view());
+    c.ok += s.status == FrameStatus::kOk;
+    c.lost += s.status == FrameStatus::kLost;
+    c.not_converged += s.status == FrameStatus::kNotConverged;
+    c.verified += s.verified;
+    c.fitted += s.loads_fitted;
+  }
+  g_counting = false;
+  Eigen::internal::set_is_malloc_allowed(true);
+  c.mallocs = g_mallocs;
+  c.news = g_news;
+  return c;
+}
+
+TEST(NoAllocation, BeamTrackerWithVerificationAndLoadFit) {
+  const Frames frames = render(12);
+  TrackerOptions options;
+  options.observation = ObservationMode::kEdge;
+  options.half_width_px = 3.0;
+  Tracker tracker(cantilever(1), options, {8});
+  ASSERT_TRUE(tracker.valid()) << tracker.error();
+  const Counts c = run(tracker, frames, 400);
+  EXPECT_EQ(c.mallocs, 0);
+  EXPECT_EQ(c.news, 0);
+  // The run must have exercised the paths it claims to.
+  SCOPED_TRACE("ok " + std::to_string(c.ok) + " lost " + std::to_string(c.lost) +
+               " not converged " + std::to_string(c.not_converged) + " verified " +
+               std::to_string(c.verified) + " fitted " + std::to_string(c.fitted));
+  EXPECT_GT(c.ok, 150);
+  EXPECT_GT(c.lost, 10);
+  EXPECT_GT(c.verified, 200);
+  EXPECT_GT(c.fitted, 100);
+}
+
+TEST(NoAllocation, NonConvergingFramesAndSnake) {
+  const Frames frames = render(12);
+  TrackerOptions options;
+  options.observation = ObservationMode::kEdge;
+  options.half_width_px = 3.0;
+  options.max_repetitions = 1;  // the bound is hit on moving frames: not converged
+  options.max_newton_iterations = 1;
+  Tracker bounded(cantilever(1), options);
+  ASSERT_TRUE(bounded.valid());
+  const Counts c = run(bounded, frames, 300);
+  EXPECT_EQ(c.mallocs, 0);
+  EXPECT_EQ(c.news, 0);
+  EXPECT_GT(c.not_converged, 50);
+
+  TrackerOptions snake_options;
+  snake_options.observation = ObservationMode::kEdge;
+  snake_options.half_width_px = 3.0;
+  snake_options.model = TrackerModel::kSnake;
+  Tracker snake(cantilever(1), snake_options);
+  ASSERT_TRUE(snake.valid());
+  const Counts s = run(snake, frames, 300);
+  EXPECT_EQ(s.mallocs, 0);
+  EXPECT_EQ(s.news, 0);
+  EXPECT_GT(s.ok + s.not_converged, 100);
+}
+
+TEST(NoAllocation, CountersSeeAllocations) {
+  // The guard itself must be able to fail.
+  g_mallocs = 0;
+  g_news = 0;
+  g_counting = true;
+  void* p = std::malloc(64);
+  int* q = new int(3);
+  g_counting = false;
+  std::free(p);
+  delete q;
+  EXPECT_EQ(g_mallocs, 1);
+  EXPECT_EQ(g_news, 1);
+}
+
+}  // namespace
+}  // namespace sinew::rt
