@@ -10,8 +10,8 @@
 namespace sinew::testing {
 
 struct TetMesh {
-  Eigen::MatrixXd rest_positions;     ///< #V by 3, metres
-  sinew::common::TetIndices tets;     ///< #T by 4, positive rest volumes
+  Eigen::MatrixXd rest_positions;  ///< #V by 3, metres
+  sinew::common::TetIndices tets;  ///< #T by 4, positive rest volumes
 };
 
 /// A box of nx·ny·nz cubes of side h, each cut into the 6 tets of the Kuhn (Freudenthal)
@@ -39,7 +39,8 @@ inline TetMesh make_box_mesh(int nx, int ny, int nz, double h = 1.0) {
             mesh.tets(t, a) = vertex(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
           }
           sinew::common::Matrix3x4d X;
-          for (int a = 0; a < 4; ++a) X.col(a) = mesh.rest_positions.row(mesh.tets(t, a)).transpose();
+          for (int a = 0; a < 4; ++a)
+            X.col(a) = mesh.rest_positions.row(mesh.tets(t, a)).transpose();
           if (sinew::common::signed_volume(X) < 0) std::swap(mesh.tets(t, 2), mesh.tets(t, 3));
           ++t;
         }
