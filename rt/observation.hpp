@@ -15,9 +15,10 @@ namespace sinew::rt {
 
 enum class ObservationMode { kEdge, kDarkLine, kBrightLine };
 
-/// For kEdge: which way intensity steps across the object's boundary. kAny accepts both (clutter
-/// of the opposite polarity is then accepted too).
-enum class EdgePolarity { kAny, kDarkObject, kBrightObject };
+/// For kEdge: which way intensity steps across the object's boundary. kAuto decides on the first
+/// frame (is the object darker or brighter than its surroundings along the initial polyline?);
+/// kAny accepts both, and so also accepts the far boundary and clutter of the opposite polarity.
+enum class EdgePolarity { kAuto, kAny, kDarkObject, kBrightObject };
 
 struct Candidate {
   float offset = 0.0f;    ///< position along the search normal relative to its centre, pixels

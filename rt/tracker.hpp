@@ -37,13 +37,17 @@ struct TrackerOptions {
   ObservationMode observation = ObservationMode::kEdge;
   /// kEdge: half the object's width in pixels (its boundaries sit at ±half_width_px), > 0.
   double half_width_px = 0.0;
-  /// kEdge: intensity step polarity; kAny also accepts clutter of the opposite polarity.
-  EdgePolarity polarity = EdgePolarity::kAny;
+  /// kEdge: intensity step polarity; kAuto (default) measures it on the first frame.
+  EdgePolarity polarity = EdgePolarity::kAuto;
   /// Sample points per element (each gives one search line, two in edge mode), ≥ 1.
   int samples_per_element = 8;
   /// Search ±range pixels along the normal around the predicted model, ≥ 1. Larger tolerates
   /// faster motion and worse prediction; costs linearly.
-  int search_range_px = 10;
+  int search_range_px = 16;
+  /// Search range of each frame's first repetition, pixels, ≥ search_range_px: catches the large
+  /// motion of the first frames (no velocity yet) and of sudden accelerations; later repetitions
+  /// search ±search_range_px around the updated model.
+  int first_search_range_px = 40;
   /// Strongest responses kept per search line; the one nearest the model is used, ≥ 1.
   int max_candidates = 3;
   /// Weakest response accepted: grey levels per pixel (edges) or grey levels (lines), > 0.
@@ -55,16 +59,21 @@ struct TrackerOptions {
   /// Image term weight relative to the elements' bending stiffness 12·EI/L₀³, > 0. Higher fits in
   /// fewer repetitions; lower regularises more per repetition.
   double image_stiffness = 1.0;
+  /// Fraction β of the bending force measured from the reference rather than from the start of
+  /// each repetition, [0, 1). 0 is the seed's scheme (the shape follows the data with no memory of
+  /// the reference); a little memory removes kinks that clutter or an occluder left behind, at a
+  /// negligible bias on the smooth bending modes (their stiffness is ~1e-4 of the image term's).
+  double bending_memory = 0.5;
   /// Repeated minimisations per frame (bound), ≥ 1.
   int max_repetitions = 12;
   /// Newton iterations per minimisation (bound), ≥ 1.
   int max_newton_iterations = 3;
-  /// A frame has converged when a repetition moves no node more than this, pixels, > 0.
+  /// A frame has converged when a repetition moves the nodes by less than this (RMS), pixels, > 0.
   double convergence_px = 0.02;
   /// Tukey's constant in units of the robust residual scale (4.685: 95 % efficiency), > 0.
   double tukey_c = 4.685;
   /// Floor of the robust residual scale (1.4826·median|d|), pixels, > 0.
-  double min_sigma_px = 0.4;
+  double min_sigma_px = 0.25;
   /// Below this fraction of search lines with an inlier the frame is reported lost, [0, 1].
   double min_inlier_fraction = 0.25;
   /// Predict from the last two frames (constant velocity); otherwise start from the last frame.
@@ -151,7 +160,10 @@ class Tracker {
 
   // Model curve of an element at u_: Hermite (beam) or straight chord (snake).
   CentrelinePoint centreline(int element, double xi) const;
-  void search(const ImageView& frame);
+  void search(const ImageView& frame, int range_px);
+  // kAuto: compares the intensity on the centreline with that at ±(half width + 3 px) along the
+  // initial polyline; returns kAny when the contrast is too weak to tell.
+  EdgePolarity measure_polarity(const ImageView& frame) const;
   // Residuals of all search lines at u_ (nearest candidate) and their Jacobian rows; returns the
   // robust Tukey cut-off tukey_c · max(1.4826·median|d|, min_sigma_px).
   double residuals();
@@ -163,6 +175,7 @@ class Tracker {
   void internal_force_at_start();
   bool newton_step();
   double max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
+  double rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
   void verify(FrameSummary& summary);
   void fit_loads(FrameSummary& summary);
 
@@ -175,6 +188,7 @@ class Tracker {
   double observation_weight_ = 0.0;
   double damping_translation_ = 0.0, damping_rotation_ = 0.0;
   int frames_ = 0;
+  EdgePolarity polarity_ = EdgePolarity::kAny;  // resolved polarity (kAuto decided on frame 0)
 
   // Per-frame workspace, sized at construction.
   std::vector<SearchLine> lines_;

@@ -14,6 +14,11 @@ std::optional<std::string> StaticSolverOptions::validate() const {
            " must be >= 1";
   }
   if (max_step_cuts < 0) return "max_step_cuts = " + std::to_string(max_step_cuts) + " must be >= 0";
+  if (!(displacement_tolerance >= 0.0 && displacement_tolerance <= 1e-3)) {
+    std::ostringstream s;
+    s << "displacement_tolerance = " << displacement_tolerance << " must be in [0, 1e-3]";
+    return s.str();
+  }
   if (!(residual_tolerance > 0.0 && residual_tolerance < 1.0)) {
     std::ostringstream s;
     s << "residual_tolerance = " << residual_tolerance << " must be in (0, 1)";
@@ -100,6 +105,12 @@ StaticSolverStatus StaticBeamSolver::newton(Eigen::Ref<Eigen::VectorXd> u,
     if (!du_.allFinite()) return StaticSolverStatus::kNonFinite;
     u += du_;
     ++summary.iterations;
+    double step = 0.0;
+    const double L = model_->total_length();
+    for (Eigen::Index i = 0; i < du_.size(); ++i) {
+      step = std::max(step, std::abs(du_[i]) / (i % 3 == 2 ? 1.0 : L));
+    }
+    if (step <= options_.displacement_tolerance) return StaticSolverStatus::kConverged;
   }
   return StaticSolverStatus::kMaxIterations;
 }

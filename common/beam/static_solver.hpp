@@ -27,6 +27,10 @@ struct StaticSolverOptions {
   /// Convergence: ‖r‖∞ ≤ residual_tolerance · force scale, with moments divided by the beam length
   /// and the force scale max(‖f‖∞, EI/L²). In (0, 1).
   double residual_tolerance = 1e-9;
+  /// Also converged when a Newton correction moves no dof by more than this, relative to the beam
+  /// length (rotations: absolute). Catches round-off floors of very slender beams (EA·L²/EI ≳ 1e6),
+  /// whose residual cannot fall below ~1e-9 of the load. In [0, 1e-3].
+  double displacement_tolerance = 1e-12;
   /// Predict each increment's start as u_k + (Δλ_new/Δλ_old)(u_k − u_{k−1}) instead of u_k.
   bool extrapolate = true;
 

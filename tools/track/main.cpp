@@ -69,6 +69,7 @@ TrackInit read_init(const std::string& path) {
     auto& t = init.options;
     const std::map<std::string, double*> reals = {
         {"min_strength", &t.min_strength},       {"image_stiffness", &t.image_stiffness},
+        {"bending_memory", &t.bending_memory},
         {"convergence_px", &t.convergence_px},   {"tukey_c", &t.tukey_c},
         {"min_sigma_px", &t.min_sigma_px},       {"min_inlier_fraction", &t.min_inlier_fraction},
         {"snake_stretch_weight", &t.snake_stretch_weight},
@@ -76,6 +77,7 @@ TrackInit read_init(const std::string& path) {
     const std::map<std::string, int*> integers = {
         {"samples_per_element", &t.samples_per_element},
         {"search_range_px", &t.search_range_px},
+        {"first_search_range_px", &t.first_search_range_px},
         {"max_candidates", &t.max_candidates},
         {"line_surround_px", &t.line_surround_px},
         {"band_px", &t.band_px},
@@ -97,14 +99,16 @@ TrackInit read_init(const std::string& path) {
     if (o.has("verify_forces")) t.verify_forces = o.at("verify_forces").boolean();
     if (o.has("polarity")) {
       const std::string p = o.at("polarity").string();
-      if (p == "any") {
+      if (p == "auto") {
+        t.polarity = rt::EdgePolarity::kAuto;
+      } else if (p == "any") {
         t.polarity = rt::EdgePolarity::kAny;
       } else if (p == "dark_object") {
         t.polarity = rt::EdgePolarity::kDarkObject;
       } else if (p == "bright_object") {
         t.polarity = rt::EdgePolarity::kBrightObject;
       } else {
-        o.at("polarity").fail("must be \"any\", \"dark_object\" or \"bright_object\"");
+        o.at("polarity").fail("must be \"auto\", \"any\", \"dark_object\" or \"bright_object\"");
       }
     }
   }
@@ -287,7 +291,10 @@ int run(const Args& args) {
     line["repetitions"] = s.repetitions;
     line["inlier_fraction"] = s.inlier_fraction;
     line["latency_us"] = s.seconds * 1e6;
-    if (!init.load_nodes.empty()) line["load_fit_rms_px"] = s.load_fit_rms_px;
+    if (!init.load_nodes.empty()) {
+      line["load_fit_rms_px"] = s.load_fit_rms_px;
+      line["loads_fitted"] = s.loads_fitted;
+    }
 
     const auto t = truth.find(index);
     if (t != truth.end() && t->second.nodes.rows() == n) {
