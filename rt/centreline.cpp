@@ -6,6 +6,7 @@ namespace sinew::rt {
 
 CentrelinePoint hermite_centreline(const Eigen::Vector2d& X1,
                                    const common::BeamElementReference& reference,
+                                   const Eigen::Vector2d& T1, const Eigen::Vector2d& T2,
                                    const common::Vector6d& u_e, double xi) {
   const double L0 = reference.length;
   const Eigen::Vector2d D = reference.chord / L0;
@@ -13,8 +14,8 @@ CentrelinePoint hermite_centreline(const Eigen::Vector2d& X1,
   const Eigen::Vector2d x2 = X1 + reference.chord + u_e.segment<2>(3);
   const double c1 = std::cos(u_e[2]), s1 = std::sin(u_e[2]);
   const double c2 = std::cos(u_e[5]), s2 = std::sin(u_e[5]);
-  const Eigen::Vector2d t1(c1 * D.x() - s1 * D.y(), s1 * D.x() + c1 * D.y());
-  const Eigen::Vector2d t2(c2 * D.x() - s2 * D.y(), s2 * D.x() + c2 * D.y());
+  const Eigen::Vector2d t1(c1 * T1.x() - s1 * T1.y(), s1 * T1.x() + c1 * T1.y());
+  const Eigen::Vector2d t2(c2 * T2.x() - s2 * T2.y(), s2 * T2.x() + c2 * T2.y());
   const Eigen::Vector2d dt1(-t1.y(), t1.x()), dt2(-t2.y(), t2.x());  // ∂t/∂θ
 
   const double xi2 = xi * xi, xi3 = xi2 * xi;
@@ -35,6 +36,27 @@ CentrelinePoint hermite_centreline(const Eigen::Vector2d& X1,
   p.jacobian.col(2) = h10 * L0 * dt1;
   p.jacobian.col(5) = h11 * L0 * dt2;
   return p;
+}
+
+Eigen::Matrix2Xd polyline_node_tangents(const Eigen::Matrix2Xd& nodes) {
+  const Eigen::Index n = nodes.cols();
+  Eigen::Matrix2Xd T(2, n);
+  if (n < 2) return T.setZero();
+  for (Eigen::Index i = 1; i + 1 < n; ++i) {
+    T.col(i) = ((nodes.col(i) - nodes.col(i - 1)).normalized() +
+                (nodes.col(i + 1) - nodes.col(i)).normalized())
+                   .normalized();
+  }
+  const Eigen::Vector2d first = (nodes.col(1) - nodes.col(0)).normalized();
+  const Eigen::Vector2d last = (nodes.col(n - 1) - nodes.col(n - 2)).normalized();
+  if (n == 2) {
+    T.col(0) = first;
+    T.col(1) = last;
+  } else {
+    T.col(0) = (2.0 * first - T.col(1)).normalized();
+    T.col(n - 1) = (2.0 * last - T.col(n - 2)).normalized();
+  }
+  return T;
 }
 
 }  // namespace sinew::rt

@@ -3,9 +3,10 @@
 /// and rotations. A straight chord sits up to l²κ/8 off a bent object (1–2 px for the beams we track);
 /// the Hermite curve uses the nodal rotations, so it follows constant curvature to O(l⁴κ³).
 ///
-/// Element e runs from node e to node e+1 with reference chord D (length L₀, unit D̂). At parameter
-/// ξ ∈ [0, 1] the point is
-///   c(ξ) = h₀₀ x₁ + h₁₀ L₀ R(θ₁) D̂ + h₀₁ x₂ + h₁₁ L₀ R(θ₂) D̂
+/// Element e runs from node e to node e+1 with reference chord length L₀; T_i is node i's unit
+/// reference tangent (shared by both elements at the node, so a curved reference polyline becomes a
+/// smooth C¹ curve). At parameter ξ ∈ [0, 1] the point is
+///   c(ξ) = h₀₀ x₁ + h₁₀ L₀ R(θ₁) T₁ + h₀₁ x₂ + h₁₁ L₀ R(θ₂) T₂
 /// with the cubic Hermite basis h and x_i = X_i + (ux_i, uy_i). It depends on the element's six dofs
 /// only, so image terms keep the stiffness block-tridiagonal.
 
@@ -22,9 +23,15 @@ struct CentrelinePoint {
 };
 
 /// Evaluates the Hermite centreline of an element at ξ. X1: reference position of the first node;
-/// u_e: the element's six dofs. No allocation.
+/// T1, T2: unit reference tangents at its two nodes; u_e: the element's six dofs. No allocation.
 CentrelinePoint hermite_centreline(const Eigen::Vector2d& X1,
                                    const common::BeamElementReference& reference,
+                                   const Eigen::Vector2d& T1, const Eigen::Vector2d& T2,
                                    const common::Vector6d& u_e, double xi);
+
+/// Unit reference tangents at the nodes of a polyline (2 x n): the mean of the two adjacent chord
+/// directions inside, a parabolic end condition (2·D̂ − T of the neighbour) at the ends. A straight
+/// polyline gets its own direction everywhere.
+Eigen::Matrix2Xd polyline_node_tangents(const Eigen::Matrix2Xd& nodes);
 
 }  // namespace sinew::rt

@@ -192,7 +192,11 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
 
   const int elements = model_.num_elements();
   const int per_element = options_.samples_per_element * sides_;
-  lines_.resize(static_cast<std::size_t>(elements) * per_element);
+  node_tangents_ = polyline_node_tangents(model_.rest_positions());
+  const auto& fixed_mask = model_.fixed_mask();
+  const bool start_free = options_.observe_ends && !fixed_mask[0] && !fixed_mask[1];
+  const bool end_free = options_.observe_ends && !fixed_mask[3 * (n - 1)] && !fixed_mask[3 * (n - 1) + 1];
+  lines_.resize(static_cast<std::size_t>(elements) * per_element + start_free + end_free);
   std::size_t l = 0;
   double stiffness = 0.0, mean_length = 0.0;
   for (int e = 0; e < elements; ++e) {
@@ -207,6 +211,16 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     const double L0 = model_.element(e).length;
     stiffness += 12.0 * model_.description().sections[e].EI / (L0 * L0 * L0);
     mean_length += L0;
+  }
+  if (start_free) {
+    lines_[l].element = 0;
+    lines_[l].xi = 0.0f;
+    lines_[l++].end = -1;
+  }
+  if (end_free) {
+    lines_[l].element = elements - 1;
+    lines_[l].xi = 1.0f;
+    lines_[l++].end = 1;
   }
   stiffness /= elements;
   mean_length /= elements;
@@ -256,7 +270,8 @@ CentrelinePoint Tracker::centreline(int element, double xi) const {
   const Eigen::Vector2d X1 = model_.rest_positions().col(element);
   const common::Vector6d ue = u_.segment<6>(3 * element);
   if (options_.model == TrackerModel::kBeam) {
-    return hermite_centreline(X1, model_.element(element), ue, xi);
+    return hermite_centreline(X1, model_.element(element), node_tangents_.col(element),
+                              node_tangents_.col(element + 1), ue, xi);
   }
   // The snake is a polyline: straight chords between the nodes.
   CentrelinePoint p;
@@ -298,16 +313,36 @@ EdgePolarity Tracker::measure_polarity(const ImageView& frame) const {
   return EdgePolarity::kAny;
 }
 
+Eigen::Vector2d Tracker::expected_point(const SearchLine& line, const CentrelinePoint& p,
+                                        Eigen::Vector2d* direction) const {
+  if (line.end == 0) {
+    *direction = p.normal;
+    return p.position + (line.side * options_.half_width_px) * p.normal;
+  }
+  // The normal is the tangent turned by +90°, so the tangent is (n.y, −n.x).
+  *direction = line.end * Eigen::Vector2d(p.normal.y(), -p.normal.x());
+  return p.position + options_.half_width_px * *direction;
+}
+
 void Tracker::search(const ImageView& frame, int range_px) {
   const int K = options_.max_candidates;
   for (std::size_t l = 0; l < lines_.size(); ++l) {
     SearchLine& line = lines_[l];
     const CentrelinePoint p = centreline(line.element, line.xi);
-    line.normal = p.normal;
-    line.centre = p.position + (line.side * options_.half_width_px) * p.normal;
+    line.centre = expected_point(line, p, &line.normal);
     ProfileSearch search = profile_search_;
     search.range_px = range_px;
-    if (options_.observation == ObservationMode::kEdge) {
+    if (line.end != 0) {
+      // An end: the object gives way to background going outwards along the tangent.
+      search.mode = ObservationMode::kEdge;
+      const bool dark = options_.observation == ObservationMode::kDarkLine ||
+                        (options_.observation == ObservationMode::kEdge &&
+                         polarity_ == EdgePolarity::kDarkObject);
+      const bool bright = options_.observation == ObservationMode::kBrightLine ||
+                          (options_.observation == ObservationMode::kEdge &&
+                           polarity_ == EdgePolarity::kBrightObject);
+      search.expected_sign = dark ? 1 : bright ? -1 : 0;
+    } else if (options_.observation == ObservationMode::kEdge) {
       // Along +n, a dark object's +n boundary goes dark → bright, its −n boundary bright → dark.
       const int sign = line.side > 0 ? 1 : -1;
       search.expected_sign = polarity_ == EdgePolarity::kDarkObject     ? sign
@@ -327,10 +362,13 @@ double Tracker::residuals() {
     residual_[l] = kNaN;
     if (line.num_candidates == 0) continue;
     const CentrelinePoint p = centreline(line.element, line.xi);
-    const Eigen::Vector2d model_point = p.position + (line.side * options_.half_width_px) * p.normal;
+    Eigen::Vector2d direction;
+    const Eigen::Vector2d model_point = expected_point(line, p, &direction);
     const double model_offset = (model_point - line.centre).dot(line.normal);
     double best = std::numeric_limits<double>::infinity();
-    for (int c = 0; c < line.num_candidates; ++c) {
+    // Candidates are sorted strongest first. In a frame's first repetition, when the model may
+    // still be far off, the strongest response wins; afterwards the one nearest the model.
+    for (int c = 0; c < (strongest_candidate_ ? 1 : line.num_candidates); ++c) {
       const double d = candidates_[l * K + c].offset - model_offset;
       if (std::abs(d) < std::abs(best)) best = d;
     }
@@ -521,6 +559,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   double last_move = std::numeric_limits<double>::infinity();
   for (int rep = 0; rep < options_.max_repetitions && !failed; ++rep) {
     search(frame, rep == 0 ? options_.first_search_range_px : options_.search_range_px);
+    strongest_candidate_ = rep == 0;
     u_start_ = u_;
     internal_force_at_start();
     ++summary.repetitions;
@@ -546,6 +585,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
     last_move = move;
   }
 
+  strongest_candidate_ = false;
   // Final residuals: RMS of the inliers and the fraction of search lines that found one.
   const double cutoff = failed ? 0.0 : residuals();
   int inliers = 0, inside = 0;

@@ -76,6 +76,9 @@ struct TrackerOptions {
   double min_sigma_px = 0.25;
   /// Below this fraction of search lines with an inlier the frame is reported lost, [0, 1].
   double min_inlier_fraction = 0.25;
+  /// Also search along the tangent for the object's end at each free end (a node with no fixed
+  /// translation): without it a free beam can slide along itself, which normals cannot see.
+  bool observe_ends = true;
   /// Predict from the last two frames (constant velocity); otherwise start from the last frame.
   bool predict = true;
   /// Verify the recovered per-node forces by a forward static solve (seed 000 §4).
@@ -145,6 +148,9 @@ class Tracker {
   /// Loads fitted at the load nodes (zeros elsewhere); zero when no load nodes were given.
   const Eigen::VectorXd& fitted_loads() const { return fitted_loads_; }
   const std::vector<int>& load_nodes() const { return load_nodes_; }
+  /// The model curve of an element at the current state: the Hermite centreline (beam) or the
+  /// straight chord (snake), at ξ ∈ [0, 1]. For overlays; no allocation.
+  CentrelinePoint centreline(int element, double xi) const;
   /// Node positions of the verification solve (valid when the summary says verified).
   const Eigen::VectorXd& verification_state() const { return u_verify_; }
 
@@ -153,13 +159,16 @@ class Tracker {
     int element = 0;
     float xi = 0.0f;
     float side = 0.0f;  // −1, +1 (edge boundaries) or 0 (line centre)
+    int end = 0;        // ±1: searches along the outward tangent for the object's end (free ends)
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();
     Eigen::Vector2d normal = Eigen::Vector2d::Zero();
     int num_candidates = 0;
   };
 
-  // Model curve of an element at u_: Hermite (beam) or straight chord (snake).
-  CentrelinePoint centreline(int element, double xi) const;
+
+  // Where the line expects the image feature at u_, and the direction it searches along.
+  Eigen::Vector2d expected_point(const SearchLine& line, const CentrelinePoint& p,
+                                 Eigen::Vector2d* direction) const;
   void search(const ImageView& frame, int range_px);
   // kAuto: compares the intensity on the centreline with that at ±(half width + 3 px) along the
   // initial polyline; returns kAny when the contrast is too weak to tell.
@@ -188,6 +197,7 @@ class Tracker {
   double observation_weight_ = 0.0;
   double damping_translation_ = 0.0, damping_rotation_ = 0.0;
   int frames_ = 0;
+  bool strongest_candidate_ = false;  // associate with the strongest candidate (first repetition)
   EdgePolarity polarity_ = EdgePolarity::kAny;  // resolved polarity (kAuto decided on frame 0)
 
   // Per-frame workspace, sized at construction.
@@ -197,6 +207,7 @@ class Tracker {
   std::vector<float> sorted_;          // scratch for the median
   std::vector<float> scratch_;
   std::vector<common::Vector6d> jacobian_rows_;  // ∂d/∂u_e per line
+  Eigen::Matrix2Xd node_tangents_;                 // unit reference tangent per node
   Eigen::VectorXd u_, u_prev1_, u_prev2_, u_start_, p_ref_, gradient_, du_, forces_;
   Eigen::VectorXd fitted_loads_;
   common::BlockTridiagonal tangent_;

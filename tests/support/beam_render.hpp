@@ -28,17 +28,16 @@ struct GreyImage {
 inline std::vector<Eigen::Vector2d> centreline_points(const common::BeamModel& model,
                                                       const Eigen::VectorXd& u, int per_element) {
   std::vector<Eigen::Vector2d> pts;
+  const Eigen::Matrix2Xd T = rt::polyline_node_tangents(model.rest_positions());
+  auto point = [&](int e, double xi) {
+    return rt::hermite_centreline(model.rest_positions().col(e), model.element(e), T.col(e),
+                                  T.col(e + 1), u.segment<6>(3 * e), xi)
+        .position;
+  };
   for (int e = 0; e < model.num_elements(); ++e) {
-    for (int k = 0; k < per_element; ++k) {
-      pts.push_back(rt::hermite_centreline(model.rest_positions().col(e), model.element(e),
-                                           u.segment<6>(3 * e), double(k) / per_element)
-                        .position);
-    }
+    for (int k = 0; k < per_element; ++k) pts.push_back(point(e, double(k) / per_element));
   }
-  const int last = model.num_elements() - 1;
-  pts.push_back(rt::hermite_centreline(model.rest_positions().col(last), model.element(last),
-                                       u.segment<6>(3 * last), 1.0)
-                    .position);
+  pts.push_back(point(model.num_elements() - 1, 1.0));
   return pts;
 }
 

@@ -85,7 +85,7 @@ TrackInit read_init(const std::string& path) {
         {"max_newton_iterations", &t.max_newton_iterations},
         {"verify_load_steps", &t.verify_load_steps},
         {"max_load_fit_iterations", &t.max_load_fit_iterations}};
-    std::vector<std::string> keys = {"predict", "verify_forces", "polarity"};
+    std::vector<std::string> keys = {"predict", "verify_forces", "polarity", "observe_ends", "fit_moments"};
     for (const auto& kv : reals) keys.push_back(kv.first);
     for (const auto& kv : integers) keys.push_back(kv.first);
     o.expect_keys(keys);
@@ -96,6 +96,8 @@ TrackInit read_init(const std::string& path) {
       if (o.has(key)) *field = static_cast<int>(o.at(key).integer());
     }
     if (o.has("predict")) t.predict = o.at("predict").boolean();
+    if (o.has("observe_ends")) t.observe_ends = o.at("observe_ends").boolean();
+    if (o.has("fit_moments")) t.fit_moments = o.at("fit_moments").boolean();
     if (o.has("verify_forces")) t.verify_forces = o.at("verify_forces").boolean();
     if (o.has("polarity")) {
       const std::string p = o.at("polarity").string();
@@ -165,15 +167,12 @@ void draw_arrow(cv::Mat& img, const Eigen::Vector2d& from, const Eigen::Vector2d
 
 void draw_overlay(cv::Mat& img, const rt::Tracker& tracker, const rt::FrameSummary& s, int frame) {
   const auto& model = tracker.model();
-  const Eigen::VectorXd& u = tracker.state();
   const cv::Scalar curve_colour = s.status == rt::FrameStatus::kLost ? cv::Scalar(0, 0, 255)
                                                                      : cv::Scalar(0, 230, 255);
   for (int e = 0; e < model.num_elements(); ++e) {
     cv::Point2d prev;
     for (int k = 0; k <= 10; ++k) {
-      const rt::CentrelinePoint p = rt::hermite_centreline(model.rest_positions().col(e),
-                                                           model.element(e), u.segment<6>(3 * e),
-                                                           k / 10.0);
+      const rt::CentrelinePoint p = tracker.centreline(e, k / 10.0);
       const cv::Point2d q(p.position.x(), p.position.y());
       if (k > 0) cv::line(img, prev, q, curve_colour, 2, cv::LINE_AA);
       prev = q;
