@@ -252,9 +252,12 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     for (int i = 0; i < n; ++i) snake_fixed_[3 * i + 2] = 1;  // a polyline has no rotations
   }
   const int params = (options_.fit_moments ? 3 : 2) * static_cast<int>(load_nodes_.size());
-  fit_residual_.setZero(2 * n);
-  fit_change_.setZero(2 * n);
-  fit_jacobian_.setZero(2 * n, params);
+  fit_residual_.setZero(3 * n);
+  fit_change_.setZero(3 * n);
+  fit_jacobian_.setZero(3 * n, params);
+  fit_weighted_jacobian_.setZero(3 * n, params);
+  if (static_cast<int>(sorted_.size()) < n) sorted_.resize(n);
+  fit_rotation_scale_ = model_.total_length() / model_.num_elements();
   fit_q_.setZero(params);
   fit_dq_.setZero(params);
   fit_g_.setZero(params);
@@ -684,7 +687,8 @@ void Tracker::fit_loads(FrameSummary& summary) {
     }
     fit_loads_prev_ = fit_rhs_;
     for (int i = 0; i < n; ++i) {
-      fit_residual_.segment<2>(2 * i) = u_fit_.segment<2>(3 * parts * i) - u_.segment<2>(3 * i);
+      fit_residual_.segment<2>(3 * i) = u_fit_.segment<2>(3 * parts * i) - u_.segment<2>(3 * i);
+      fit_residual_[3 * i + 2] = fit_rotation_scale_ * (u_fit_[3 * parts * i + 2] - u_[3 * i + 2]);
     }
     if (ok) break;  // the previous update was negligible: this equilibrium is the answer
 
@@ -697,11 +701,23 @@ void Tracker::fit_loads(FrameSummary& summary) {
       if (!fixed[dof]) fit_z_[dof] = 1.0;
       fit_factor_.solve_in_place(fit_z_);
       for (int i = 0; i < n; ++i) {
-        fit_jacobian_.block<2, 1>(2 * i, j) = fit_z_.segment<2>(3 * parts * i);
+        fit_jacobian_.block<2, 1>(3 * i, j) = fit_z_.segment<2>(3 * parts * i);
+        fit_jacobian_(3 * i + 2, j) = fit_rotation_scale_ * fit_z_[3 * parts * i + 2];
       }
     }
-    fit_normal_.noalias() = fit_jacobian_.transpose() * fit_jacobian_;
-    fit_g_.noalias() = fit_jacobian_.transpose() * fit_residual_;
+    // Tukey weights per node (robust to a local kink that clutter or an occluder left in the
+    // tracked shape), scale 1.4826·median with a floor of 0.05 px.
+    int count = 0;
+    for (int i = 0; i < n; ++i) sorted_[count++] = static_cast<float>(fit_residual_.segment<3>(3 * i).norm());
+    std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
+    const double cut = options_.tukey_c * std::max(1.4826 * double(sorted_[count / 2]), 0.05);
+    for (int i = 0; i < n; ++i) {
+      const double r = fit_residual_.segment<3>(3 * i).norm() / cut;
+      const double w = r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0;
+      fit_weighted_jacobian_.middleRows<3>(3 * i) = w * fit_jacobian_.middleRows<3>(3 * i);
+    }
+    fit_normal_.noalias() = fit_weighted_jacobian_.transpose() * fit_jacobian_;
+    fit_g_.noalias() = fit_weighted_jacobian_.transpose() * fit_residual_;
     const double ridge = 1e-6 * fit_normal_.diagonal().maxCoeff() + 1e-300;
     for (int j = 0; j < params; ++j) fit_normal_(j, j) += ridge;
     fit_ldlt_.compute(fit_normal_);

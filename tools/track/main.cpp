@@ -223,7 +223,18 @@ struct Args {
   std::string input, init, out, overlay, model = "beam", truth;
   int stride = 1, first = 0, count = -1;
   bool quiet = false;
+  bool compare_snake = false;
 };
+
+// RMS distance (pixels) between a tracker's nodes and the truth nodes.
+double node_rms_error(const rt::Tracker& tracker, const Eigen::MatrixXd& truth_nodes) {
+  double sum = 0.0;
+  const int n = tracker.num_nodes();
+  for (int i = 0; i < n; ++i) {
+    sum += (tracker.node_position(i) - truth_nodes.row(i).head<2>().transpose()).squaredNorm();
+  }
+  return std::sqrt(sum / n);
+}
 
 int run(const Args& args) {
   TrackInit init = read_init(args.init);
@@ -236,6 +247,12 @@ int run(const Args& args) {
                       init.options.model == rt::TrackerModel::kBeam ? init.load_nodes
                                                                     : std::vector<int>{});
   if (!tracker.valid()) throw tools::InputError(args.init + ": " + tracker.error());
+  // The seed's comparison (§5.2): the snake-like baseline on the same frames, same image term.
+  rt::TrackerOptions snake_options = init.options;
+  snake_options.model = rt::TrackerModel::kSnake;
+  rt::Tracker snake(init.beam, snake_options);
+  std::vector<double> snake_errors, snake_latencies;
+  std::map<std::string, int> snake_statuses;
   const int n = tracker.num_nodes();
 
   std::ofstream out(args.out + ".tmp");
@@ -267,6 +284,12 @@ int run(const Args& args) {
     const rt::ImageView view{grey.ptr<std::uint8_t>(), grey.cols, grey.rows,
                              static_cast<std::ptrdiff_t>(grey.step[0])};
     const rt::FrameSummary s = tracker.track(view);
+    rt::FrameSummary snake_summary;
+    if (args.compare_snake) {
+      snake_summary = snake.track(view);
+      snake_latencies.push_back(snake_summary.seconds * 1e6);
+      ++snake_statuses[rt::to_string(snake_summary.status)];
+    }
     latencies.push_back(s.seconds * 1e6);
     ++statuses[rt::to_string(s.status)];
 
@@ -295,15 +318,27 @@ int run(const Args& args) {
       line["loads_fitted"] = s.loads_fitted;
     }
 
+    if (args.compare_snake) {
+      nlohmann::json snake_nodes = nlohmann::json::array();
+      for (int i = 0; i < n; ++i) {
+        const Eigen::Vector2d x = snake.node_position(i);
+        snake_nodes.push_back({x.x(), x.y()});
+      }
+      line["snake"] = {{"status", rt::to_string(snake_summary.status)},
+                       {"nodes", snake_nodes},
+                       {"rms_px", snake_summary.rms_px},
+                       {"latency_us", snake_summary.seconds * 1e6}};
+    }
     const auto t = truth.find(index);
     if (t != truth.end() && t->second.nodes.rows() == n) {
-      double sum = 0.0;
-      for (int i = 0; i < n; ++i) {
-        sum += (tracker.node_position(i) - t->second.nodes.row(i).head<2>().transpose()).squaredNorm();
-      }
-      const double err = std::sqrt(sum / n);
+      const double err = node_rms_error(tracker, t->second.nodes);
       line["error_px"] = err;
       errors.push_back(err);
+      if (args.compare_snake) {
+        const double snake_err = node_rms_error(snake, t->second.nodes);
+        line["snake"]["error_px"] = snake_err;
+        snake_errors.push_back(snake_err);
+      }
       if (!init.load_nodes.empty() && init.options.model == rt::TrackerModel::kBeam) {
         Eigen::Vector2d applied = Eigen::Vector2d::Zero(), fitted = Eigen::Vector2d::Zero();
         for (int node : init.load_nodes) {
@@ -360,6 +395,19 @@ int run(const Args& args) {
       std::cout << "  node RMS error vs truth: mean " << mean / errors.size() << " px, max "
                 << *std::max_element(errors.begin(), errors.end()) << " px\n";
     }
+    if (args.compare_snake) {
+      std::cout << "  snake baseline (seed 000 §5.2, stretch " << snake_options.snake_stretch_weight
+                << ", bend " << snake_options.snake_bend_weight << "):";
+      for (const auto& [k, v] : snake_statuses) std::cout << " " << k << " " << v;
+      std::cout << ", median latency " << percentile(snake_latencies, 0.5) << " us";
+      if (!snake_errors.empty()) {
+        double mean = 0.0;
+        for (double e : snake_errors) mean += e;
+        std::cout << ", node RMS error mean " << mean / snake_errors.size() << " px, max "
+                  << *std::max_element(snake_errors.begin(), snake_errors.end()) << " px";
+      }
+      std::cout << "\n";
+    }
     if (!load_errors.empty()) {
       std::cout << "  fitted load error vs truth: median " << percentile(load_errors, 0.5) * 100
                 << " %, max " << *std::max_element(load_errors.begin(), load_errors.end()) * 100
@@ -390,6 +438,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"beam", "snake"}));
   app.add_option("--truth", args.truth, "truth.jsonl from sinew-synth: report errors against it");
   app.add_flag("--quiet", args.quiet, "print nothing but errors");
+  app.add_flag("--compare-snake", args.compare_snake,
+               "also run the snake baseline on the same frames and report both");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
