@@ -1,14 +1,14 @@
 #pragma once
 /// The beam's centreline between two nodes as a cubic Hermite curve built from the nodal positions
-/// and rotations. A straight chord sits up to l²κ/8 off a bent object (1–2 px for the beams we track);
-/// the Hermite curve uses the nodal rotations, so it follows constant curvature to O(l⁴κ³).
+/// and rotations. A straight chord sits up to l²κ/8 off a bent object (1–2 px for the beams we
+/// track); the Hermite curve uses the nodal rotations, so it follows constant curvature to O(l⁴κ³).
 ///
 /// Element e runs from node e to node e+1 with reference chord length L₀; T_i is node i's unit
 /// reference tangent (shared by both elements at the node, so a curved reference polyline becomes a
 /// smooth C¹ curve). At parameter ξ ∈ [0, 1] the point is
 ///   c(ξ) = h₀₀ x₁ + h₁₀ L₀ R(θ₁) T₁ + h₀₁ x₂ + h₁₁ L₀ R(θ₂) T₂
-/// with the cubic Hermite basis h and x_i = X_i + (ux_i, uy_i). It depends on the element's six dofs
-/// only, so image terms keep the stiffness block-tridiagonal.
+/// with the cubic Hermite basis h and x_i = X_i + (ux_i, uy_i). It depends on the element's six
+/// dofs only, so image terms keep the stiffness block-tridiagonal.
 
 #include <Eigen/Core>
 

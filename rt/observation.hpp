@@ -4,8 +4,8 @@
 /// edge map, each search reads a 1-D intensity profile of a few dozen pixels across the model and
 /// finds the strongest local responses with sub-pixel localisation (parabola through 3 samples).
 ///
-/// Modes: kEdge finds intensity steps (each boundary of a thick object); kDarkLine / kBrightLine find
-/// the centre of a thin line (whiskers) with a centre-surround response.
+/// Modes: kEdge finds intensity steps (each boundary of a thick object); kDarkLine / kBrightLine
+/// find the centre of a thin line (whiskers) with a centre-surround response.
 
 #include <Eigen/Core>
 
@@ -29,11 +29,11 @@ struct ProfileSearch {
   ObservationMode mode = ObservationMode::kEdge;
   /// kEdge: +1 when intensity must increase along the search direction, −1 decrease, 0 either.
   int expected_sign = 0;
-  int range_px = 8;             ///< search offsets −range..range (1 px steps)
-  int max_candidates = 3;       ///< strongest local maxima kept
-  float min_strength = 8.0f;    ///< weaker responses are ignored
-  int line_surround_px = 3;     ///< line modes: distance of the surround samples from the centre
-  int band_px = 1;              ///< profile averaged over ±band_px pixels along the tangent
+  int range_px = 8;           ///< search offsets −range..range (1 px steps)
+  int max_candidates = 3;     ///< strongest local maxima kept
+  float min_strength = 8.0f;  ///< weaker responses are ignored
+  int line_surround_px = 3;   ///< line modes: distance of the surround samples from the centre
+  int band_px = 1;            ///< profile averaged over ±band_px pixels along the tangent
 
   /// Scratch floats search() needs (profile and response).
   int scratch_size() const { return 2 * (2 * (range_px + line_surround_px + 2) + 1); }

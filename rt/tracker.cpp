@@ -56,6 +56,15 @@ common::BeamDescription subdivided_description(const common::BeamDescription& be
   return d;
 }
 
+common::StaticSolverOptions direct_solver_options() {
+  common::StaticSolverOptions o;
+  o.load_steps = 1;
+  o.max_iterations_per_step = 20;
+  o.max_step_cuts = 0;
+  o.residual_tolerance = 1e-8;
+  return o;
+}
+
 common::StaticSolverOptions solver_options(int steps) {
   common::StaticSolverOptions o;
   o.load_steps = std::max(1, steps);
@@ -122,9 +131,12 @@ std::optional<std::string> TrackerOptions::validate() const {
 
 const char* to_string(FrameStatus status) {
   switch (status) {
-    case FrameStatus::kOk: return "ok";
-    case FrameStatus::kLost: return "lost";
-    case FrameStatus::kNotConverged: return "not_converged";
+    case FrameStatus::kOk:
+      return "ok";
+    case FrameStatus::kLost:
+      return "lost";
+    case FrameStatus::kNotConverged:
+      return "not_converged";
   }
   return "unknown";
 }
@@ -135,7 +147,8 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
       load_nodes_(std::move(load_nodes)),
       verify_model_(verification_description(beam)),
       verify_solver_(verify_model_, solver_options(options.verify_load_steps)),
-      verify_solver_warm_(verify_model_, solver_options(2)),
+      verify_solver_warm_(verify_model_, solver_options(8)),
+      verify_solver_direct_(verify_model_, direct_solver_options()),
       fit_model_(subdivided_description(beam, std::max(1, options.load_fit_subdivisions))),
       fit_solver_(fit_model_, solver_options(1)) {
   if (!model_.valid()) {
@@ -156,8 +169,8 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     }
     for (std::size_t j = 0; j < k; ++j) {
       if (load_nodes_[j] == node) {
-        error_ = "load_nodes[" + std::to_string(k) + "] = " + std::to_string(node) +
-                 " is listed twice";
+        error_ =
+            "load_nodes[" + std::to_string(k) + "] = " + std::to_string(node) + " is listed twice";
         return;
       }
     }
@@ -187,7 +200,8 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
           ? options_.line_surround_px
           : std::max(2, static_cast<int>(std::lround(options_.half_width_px + 1.5)));
   if (options_.observation != ObservationMode::kEdge && options_.half_width_px <= 0.0) {
-    profile_search_.line_surround_px = options_.line_surround_px > 0 ? options_.line_surround_px : 3;
+    profile_search_.line_surround_px =
+        options_.line_surround_px > 0 ? options_.line_surround_px : 3;
   }
 
   const int elements = model_.num_elements();
@@ -195,7 +209,8 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   node_tangents_ = polyline_node_tangents(model_.rest_positions());
   const auto& fixed_mask = model_.fixed_mask();
   const bool start_free = options_.observe_ends && !fixed_mask[0] && !fixed_mask[1];
-  const bool end_free = options_.observe_ends && !fixed_mask[3 * (n - 1)] && !fixed_mask[3 * (n - 1) + 1];
+  const bool end_free =
+      options_.observe_ends && !fixed_mask[3 * (n - 1)] && !fixed_mask[3 * (n - 1) + 1];
   lines_.resize(static_cast<std::size_t>(elements) * per_element + start_free + end_free);
   std::size_t l = 0;
   double stiffness = 0.0, mean_length = 0.0;
@@ -237,7 +252,8 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   scratch_.resize(profile_search_.scratch_size());
   const int dofs = model_.num_dofs();
   for (Eigen::VectorXd* v : {&u_, &u_prev1_, &u_prev2_, &u_start_, &p_ref_, &gradient_, &du_,
-                             &forces_, &fitted_loads_, &u_verify_, &verify_loads_prev_}) {
+                             &forces_, &fitted_loads_, &u_verify_, &verify_loads_prev_,
+                             &verify_previous_state_, &verify_previous_forces_, &verify_backup_}) {
     v->setZero(dofs);
   }
   for (Eigen::VectorXd* v : {&u_fit_, &fit_loads_prev_, &fit_rhs_, &fit_z_}) {
@@ -267,7 +283,9 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   fit_factor_.resize(fit_model_.num_nodes());
 }
 
-void Tracker::reset_motion() noexcept { u_prev2_ = u_prev1_; }
+void Tracker::reset_motion() noexcept {
+  u_prev2_ = u_prev1_;
+}
 
 CentrelinePoint Tracker::centreline(int element, double xi) const {
   const Eigen::Vector2d X1 = model_.rest_positions().col(element);
@@ -352,8 +370,8 @@ void Tracker::search(const ImageView& frame, int range_px) {
                              : polarity_ == EdgePolarity::kBrightObject ? -sign
                                                                         : 0;
     }
-    line.num_candidates =
-        search_profile(frame, line.centre, line.normal, search, scratch_.data(), &candidates_[l * K]);
+    line.num_candidates = search_profile(frame, line.centre, line.normal, search, scratch_.data(),
+                                         &candidates_[l * K]);
   }
 }
 
@@ -371,7 +389,10 @@ double Tracker::residuals() {
     double best = std::numeric_limits<double>::infinity();
     // Candidates are sorted strongest first. In a frame's first repetition, when the model may
     // still be far off, the strongest response wins; afterwards the one nearest the model.
-    for (int c = 0; c < (strongest_candidate_ ? 1 : line.num_candidates); ++c) {
+    // Ends always take the nearest: beyond an object's end the strongest step is often another
+    // object (a holder, the image border).
+    const bool strongest = strongest_candidate_ && line.end == 0;
+    for (int c = 0; c < (strongest ? 1 : line.num_candidates); ++c) {
       const double d = candidates_[l * K + c].offset - model_offset;
       if (std::abs(d) < std::abs(best)) best = d;
     }
@@ -412,14 +433,16 @@ void Tracker::add_snake_term(double* energy) {
   const int n = model_.num_nodes();
   const double ws = options_.snake_stretch_weight, wb = options_.snake_bend_weight;
   for (int e = 0; e + 1 < n; ++e) {
-    const Eigen::Vector2d d = model_.element(e).chord + u_.segment<2>(3 * e + 3) - u_.segment<2>(3 * e);
+    const Eigen::Vector2d d =
+        model_.element(e).chord + u_.segment<2>(3 * e + 3) - u_.segment<2>(3 * e);
     const double len = std::max(d.norm(), 1e-12);
     const double L0 = model_.element(e).length;
     const Eigen::Vector2d g = d / len;
     const Eigen::Vector2d grad = 2.0 * ws * (len - L0) * g;
     // Hessian of (|d| − L₀)²: 2 g gᵀ + 2 (|d| − L₀)/|d| (I − g gᵀ), the second part clamped at 0.
     Eigen::Matrix2d H = 2.0 * ws * g * g.transpose();
-    if (len > L0) H += 2.0 * ws * (len - L0) / len * (Eigen::Matrix2d::Identity() - g * g.transpose());
+    if (len > L0)
+      H += 2.0 * ws * (len - L0) / len * (Eigen::Matrix2d::Identity() - g * g.transpose());
     gradient_.segment<2>(3 * e) -= grad;
     gradient_.segment<2>(3 * e + 3) += grad;
     snake_matrix_.block<2, 2>(3 * e, 3 * e) += H;
@@ -431,8 +454,8 @@ void Tracker::add_snake_term(double* energy) {
   const double coeff[3] = {1.0, -2.0, 1.0};
   for (int i = 1; i + 1 < n; ++i) {
     // Δ²u (the reference's Δ²X cancels in Δ²x − Δ²X).
-    const Eigen::Vector2d b = u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) +
-                              u_.segment<2>(3 * i - 3);
+    const Eigen::Vector2d b =
+        u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) + u_.segment<2>(3 * i - 3);
     for (int a = 0; a < 3; ++a) {
       gradient_.segment<2>(3 * (i - 1 + a)) += 2.0 * wb * coeff[a] * b;
       for (int c = 0; c < 3; ++c) {
@@ -499,9 +522,8 @@ void Tracker::internal_force_at_start() {
     for (int e = 0; e < model_.num_elements(); ++e) {
       const common::BeamStrains h = common::beam_strains(model_.element(e), u_.segment<6>(3 * e));
       const common::BeamSection& section = model_.description().sections[e];
-      const double M0 = model_.description().prestress.empty()
-                            ? 0.0
-                            : model_.description().prestress[e].M0;
+      const double M0 =
+          model_.description().prestress.empty() ? 0.0 : model_.description().prestress[e].M0;
       const double M = (1.0 - options_.bending_memory) * (M0 + section.EI * h.kappa);
       p_ref_[3 * e + 2] -= M;
       p_ref_[3 * e + 5] += M;
@@ -511,8 +533,8 @@ void Tracker::internal_force_at_start() {
     const int n = model_.num_nodes();
     const double coeff[3] = {1.0, -2.0, 1.0};
     for (int i = 1; i + 1 < n; ++i) {
-      const Eigen::Vector2d b = u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) +
-                                u_.segment<2>(3 * i - 3);
+      const Eigen::Vector2d b =
+          u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) + u_.segment<2>(3 * i - 3);
       for (int a = 0; a < 3; ++a) {
         p_ref_.segment<2>(3 * (i - 1 + a)) +=
             (1.0 - options_.bending_memory) * 2.0 * options_.snake_bend_weight * coeff[a] * b;
@@ -548,7 +570,8 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
 
   if (frames_ == 0 && options_.observation == ObservationMode::kEdge) {
     u_.setZero();
-    polarity_ = options_.polarity == EdgePolarity::kAuto ? measure_polarity(frame) : options_.polarity;
+    polarity_ =
+        options_.polarity == EdgePolarity::kAuto ? measure_polarity(frame) : options_.polarity;
   }
   if (frames_ >= 2 && options_.predict) {
     u_ = 2.0 * u_prev1_ - u_prev2_;
@@ -561,8 +584,10 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   bool converged = false, failed = false;
   double last_move = std::numeric_limits<double>::infinity();
   for (int rep = 0; rep < options_.max_repetitions && !failed; ++rep) {
-    search(frame, rep == 0 ? options_.first_search_range_px : options_.search_range_px);
-    strongest_candidate_ = rep == 0;
+    // The first frame is where the initial polyline was drawn: no motion to catch up with.
+    const bool wide = rep == 0 && frames_ > 0;
+    search(frame, wide ? options_.first_search_range_px : options_.search_range_px);
+    strongest_candidate_ = wide;
     u_start_ = u_;
     internal_force_at_start();
     ++summary.repetitions;
@@ -573,7 +598,8 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
       }
       ++summary.iterations;
       double step = 0.0;
-      for (int i = 0; i < model_.num_nodes(); ++i) step = std::max(step, du_.segment<2>(3 * i).norm());
+      for (int i = 0; i < model_.num_nodes(); ++i)
+        step = std::max(step, du_.segment<2>(3 * i).norm());
       if (step < 0.1 * options_.convergence_px) break;
     }
     // Converged when a repetition no longer moves the model, or when the moves have stalled at a
@@ -607,6 +633,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
 
   if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction) {
     summary.status = FrameStatus::kLost;
+    verify_have_previous_ = false;
     // Keep the last good state and forget the velocity: the next frame searches from there.
     if (frames_ >= 1) {
       u_ = u_prev1_;
@@ -631,14 +658,47 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
 }
 
 void Tracker::verify(FrameSummary& summary) {
+  // The seed's check: apply f = p(u_T) in a forward static solve and compare with the fit. The
+  // solve continues from the previous tracked frame, which is an exact equilibrium of its own
+  // forces, stepping the loads to this frame's (forces between consecutive frames, seed 000 §4).
+  // A solve from the reference configuration is the fallback (first frame, after a lost frame):
+  // with noisy per-node forces a slender beam's path from the reference can end on another branch.
   common::StaticSolverSummary s;
-  if (verify_warm_) {
-    // From the previous frame's verified equilibrium, stepping from its loads to these.
-    s = verify_solver_warm_.solve(forces_, u_verify_, &verify_loads_prev_);
+  const bool free = !model_.rigid_motions_constrained();
+  bool warm = verify_have_previous_;
+  if (warm) {
+    u_verify_ = verify_previous_state_;
+    verify_loads_prev_ = verify_previous_forces_;
+    if (free) {
+      // The verification clamps node 0 at its tracked pose: move the previous equilibrium rigidly
+      // onto this frame's node 0 (loads rotate with it and stay in equilibrium).
+      const double dtheta = u_[2] - u_verify_[2];
+      const Eigen::Rotation2Dd R(dtheta);
+      const Eigen::Vector2d x0_old = model_.rest_positions().col(0) + u_verify_.segment<2>(0);
+      const Eigen::Vector2d x0_new = model_.rest_positions().col(0) + u_.segment<2>(0);
+      for (int i = 0; i < model_.num_nodes(); ++i) {
+        const Eigen::Vector2d X = model_.rest_positions().col(i);
+        const Eigen::Vector2d x = X + u_verify_.segment<2>(3 * i);
+        u_verify_.segment<2>(3 * i) = R * (x - x0_old) + x0_new - X;
+        u_verify_[3 * i + 2] += dtheta;
+        verify_loads_prev_.segment<2>(3 * i) = R * verify_loads_prev_.segment<2>(3 * i);
+      }
+    }
+    // Newton straight to this frame's loads first: it converges to the nearby equilibrium even
+    // where that equilibrium is unstable (noisy per-node forces can compress a slender beam past
+    // buckling), where a load path would run into a limit point. Then a stepped path.
+    verify_backup_ = u_verify_;
+    s = verify_solver_direct_.solve(forces_, u_verify_, &verify_loads_prev_);
+    if (!s.converged()) {
+      u_verify_ = verify_backup_;
+      s = verify_solver_warm_.solve(forces_, u_verify_, &verify_loads_prev_);
+    }
+    warm = s.converged();
   }
-  if (!verify_warm_ || !s.converged()) {
-    // From the reference configuration (moved rigidly to the tracked pose of node 0 for free beams).
-    if (model_.rigid_motions_constrained()) {
+  if (!warm) {
+    // From the reference configuration (moved rigidly to the tracked pose of node 0 for free
+    // beams).
+    if (!free) {
       u_verify_.setZero();
     } else {
       const double theta = u_[2];
@@ -653,18 +713,17 @@ void Tracker::verify(FrameSummary& summary) {
     s = verify_solver_.solve(forces_, u_verify_);
   }
   summary.verified = s.converged();
-  verify_warm_ = summary.verified && model_.rigid_motions_constrained();
-  if (summary.verified) {
-    verify_loads_prev_ = forces_;
-    summary.verify_px = max_node_distance(u_verify_, u_);
-  }
+  if (summary.verified) summary.verify_px = max_node_distance(u_verify_, u_);
+  verify_previous_state_ = u_;
+  verify_previous_forces_ = forces_;
+  verify_have_previous_ = true;
 }
 
 void Tracker::fit_loads(FrameSummary& summary) {
   // Gauss–Newton over the loads q at the load nodes: minimise Σ_i |x_i(u(q)) − x_i(u_T)|², u(q)
-  // the equilibrium under those loads alone, ∂u/∂q = K_T⁻¹ E (E scatters q to the dofs), solved on a
-  // subdivided copy of the beam. Components the shape barely determines (an axial force on a nearly
-  // straight beam) are held by a small ridge; each step may move a node by at most 20 px.
+  // the equilibrium under those loads alone, ∂u/∂q = K_T⁻¹ E (E scatters q to the dofs), solved on
+  // a subdivided copy of the beam. Components the shape barely determines (an axial force on a
+  // nearly straight beam) are held by a small ridge; each step may move a node by at most 20 px.
   const int n = model_.num_nodes();
   const int parts = std::max(1, options_.load_fit_subdivisions);
   const int params = static_cast<int>(fit_q_.size());
@@ -674,7 +733,8 @@ void Tracker::fit_loads(FrameSummary& summary) {
   for (int it = 0; it < options_.max_load_fit_iterations; ++it) {
     fit_rhs_.setZero();
     for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
-      fit_rhs_.segment(3 * parts * load_nodes_[k], per_node) = fit_q_.segment(per_node * k, per_node);
+      fit_rhs_.segment(3 * parts * load_nodes_[k], per_node) =
+          fit_q_.segment(per_node * k, per_node);
     }
     const common::StaticSolverSummary s = fit_solver_.solve(fit_rhs_, u_fit_, &fit_loads_prev_);
     if (!s.converged()) {
@@ -708,7 +768,8 @@ void Tracker::fit_loads(FrameSummary& summary) {
     // Tukey weights per node (robust to a local kink that clutter or an occluder left in the
     // tracked shape), scale 1.4826·median with a floor of 0.05 px.
     int count = 0;
-    for (int i = 0; i < n; ++i) sorted_[count++] = static_cast<float>(fit_residual_.segment<3>(3 * i).norm());
+    for (int i = 0; i < n; ++i)
+      sorted_[count++] = static_cast<float>(fit_residual_.segment<3>(3 * i).norm());
     std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
     const double cut = options_.tukey_c * std::max(1.4826 * double(sorted_[count / 2]), 0.05);
     for (int i = 0; i < n; ++i) {

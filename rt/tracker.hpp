@@ -3,11 +3,11 @@
 /// frames, search for image observations along the normals of the model's Hermite centreline, and
 /// take Tukey-weighted Newton steps (K_T + ∇FᵀW∇F) du = −(∇FᵀW F + p(u) − p(u_r)) (eq. 10),
 /// repeating whole minimisations until the model stops moving. Each repetition r measures elastic
-/// forces relative to its own start u_r, so the image forces can pull the model all the way onto the
-/// data while the beam keeps each step physically plausible; the total displacement u_T is the sum.
-/// Then the applied nodal loads f = p(u_T) (the seed's −p sign for the reaction) are recovered and
-/// verified by a forward static solve, and, when load nodes are named, the loads at those nodes only
-/// are fitted so that the equilibrium shape matches the tracked one (a well-posed estimate).
+/// forces relative to its own start u_r, so the image forces can pull the model all the way onto
+/// the data while the beam keeps each step physically plausible; the total displacement u_T is the
+/// sum. Then the applied nodal loads f = p(u_T) (the seed's −p sign for the reaction) are recovered
+/// and verified by a forward static solve, and, when load nodes are named, the loads at those nodes
+/// only are fitted so that the equilibrium shape matches the tracked one (a well-posed estimate).
 ///
 /// Real-time contract: all memory is sized at construction; track() never allocates, throws or
 /// prints, and its work is bounded by max_repetitions x max_newton_iterations.
@@ -109,16 +109,16 @@ const char* to_string(FrameStatus status);
 /// Plain data about one tracked frame.
 struct FrameSummary {
   FrameStatus status = FrameStatus::kLost;
-  int repetitions = 0;          ///< minimisations run
-  int iterations = 0;           ///< Newton iterations over all repetitions
-  int search_lines = 0;         ///< search lines inside the image
-  double rms_px = 0.0;          ///< RMS image residual of the inliers at the end, pixels
-  double inlier_fraction = 0.0; ///< search lines with an inlier observation / all search lines
-  bool verified = false;        ///< a verification solve ran and converged
-  double verify_px = 0.0;       ///< largest node distance between the verification and the fit
-  bool loads_fitted = false;    ///< the load-node fit ran and converged
-  double load_fit_rms_px = 0.0; ///< RMS node distance between the fitted equilibrium and the fit
-  double seconds = 0.0;         ///< wall time of track()
+  int repetitions = 0;           ///< minimisations run
+  int iterations = 0;            ///< Newton iterations over all repetitions
+  int search_lines = 0;          ///< search lines inside the image
+  double rms_px = 0.0;           ///< RMS image residual of the inliers at the end, pixels
+  double inlier_fraction = 0.0;  ///< search lines with an inlier observation / all search lines
+  bool verified = false;         ///< a verification solve ran and converged
+  double verify_px = 0.0;        ///< largest node distance between the verification and the fit
+  bool loads_fitted = false;     ///< the load-node fit ran and converged
+  double load_fit_rms_px = 0.0;  ///< RMS node distance between the fitted equilibrium and the fit
+  double seconds = 0.0;          ///< wall time of track()
 };
 
 class Tracker {
@@ -167,7 +167,6 @@ class Tracker {
     int num_candidates = 0;
   };
 
-
   // Where the line expects the image feature at u_, and the direction it searches along.
   Eigen::Vector2d expected_point(const SearchLine& line, const CentrelinePoint& p,
                                  Eigen::Vector2d* direction) const;
@@ -209,7 +208,7 @@ class Tracker {
   std::vector<float> sorted_;          // scratch for the median
   std::vector<float> scratch_;
   std::vector<common::Vector6d> jacobian_rows_;  // ∂d/∂u_e per line
-  Eigen::Matrix2Xd node_tangents_;                 // unit reference tangent per node
+  Eigen::Matrix2Xd node_tangents_;               // unit reference tangent per node
   Eigen::VectorXd u_, u_prev1_, u_prev2_, u_start_, p_ref_, gradient_, du_, forces_;
   Eigen::VectorXd fitted_loads_;
   common::BlockTridiagonal tangent_;
@@ -223,14 +222,17 @@ class Tracker {
   common::BeamModel verify_model_;
   common::StaticBeamSolver verify_solver_;
   common::StaticBeamSolver verify_solver_warm_;
+  common::StaticBeamSolver verify_solver_direct_;
   Eigen::VectorXd u_verify_, verify_loads_prev_;
-  bool verify_warm_ = false;
+  Eigen::VectorXd verify_previous_state_, verify_previous_forces_;  // last tracked frame
+  Eigen::VectorXd verify_backup_;
+  bool verify_have_previous_ = false;
 
   // Load fit, on the beam with every element subdivided.
   common::BeamModel fit_model_;
   common::StaticBeamSolver fit_solver_;
   Eigen::VectorXd u_fit_, fit_loads_prev_, fit_rhs_, fit_residual_, fit_z_;
-  Eigen::MatrixXd fit_jacobian_;  // 2n x (2 or 3)k: node displacements per load parameter
+  Eigen::MatrixXd fit_jacobian_;           // 2n x (2 or 3)k: node displacements per load parameter
   Eigen::MatrixXd fit_weighted_jacobian_;  // W·J with the nodes' Tukey weights
   Eigen::VectorXd fit_change_;
   double fit_rotation_scale_ = 1.0;  // rotations enter the fit as arc lengths over one element

@@ -48,8 +48,8 @@ Eigen::Matrix<double, 3, 6> strain_displacement_from(const Kinematics& k, const 
   const double L = k.inv_length;
   Eigen::Matrix<double, 3, 6> B;
   B << -k.t.x() * L, -k.t.y() * L, 0.5 * h.gamma, k.t.x() * L, k.t.y() * L, 0.5 * h.gamma,
-      -k.n.x() * L, -k.n.y() * L, -0.5 * (1.0 + h.e), k.n.x() * L, k.n.y() * L,
-      -0.5 * (1.0 + h.e), 0.0, 0.0, -L, 0.0, 0.0, L;
+      -k.n.x() * L, -k.n.y() * L, -0.5 * (1.0 + h.e), k.n.x() * L, k.n.y() * L, -0.5 * (1.0 + h.e),
+      0.0, 0.0, -L, 0.0, 0.0, L;
   return B;
 }
 

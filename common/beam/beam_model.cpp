@@ -107,8 +107,8 @@ BeamModel::BeamModel(BeamDescription description) {
     total_length_ += references_.back().length;
     max_EI_ = std::max(max_EI_, description_.sections[e].EI);
   }
-  fixed_mask_ = description_.fixed.empty() ? std::vector<unsigned char>(3 * n, 0)
-                                           : description_.fixed;
+  fixed_mask_ =
+      description_.fixed.empty() ? std::vector<unsigned char>(3 * n, 0) : description_.fixed;
   rigid_motions_constrained_ = compute_rigid_motions_constrained();
 }
 

@@ -30,10 +30,10 @@ enum class BeamDof : int { kUx = 0, kUy = 1, kTheta = 2 };
 
 /// Plain description of a beam, checked by validate() before a BeamModel is built.
 struct BeamDescription {
-  Eigen::Matrix2Xd rest_positions;          ///< 2 x n reference node positions, n ≥ 2
-  std::vector<BeamSection> sections;        ///< n − 1 element sections
-  std::vector<BeamPrestress> prestress;     ///< empty (stress-free reference) or n − 1 entries
-  std::vector<unsigned char> fixed;         ///< empty (free beam) or 3n flags, dof 3i + BeamDof
+  Eigen::Matrix2Xd rest_positions;       ///< 2 x n reference node positions, n ≥ 2
+  std::vector<BeamSection> sections;     ///< n − 1 element sections
+  std::vector<BeamPrestress> prestress;  ///< empty (stress-free reference) or n − 1 entries
+  std::vector<unsigned char> fixed;      ///< empty (free beam) or 3n flags, dof 3i + BeamDof
 
   /// A description with one material for every element and no fixed dof.
   static BeamDescription uniform(const Eigen::Matrix2Xd& rest_positions,

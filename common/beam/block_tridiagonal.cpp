@@ -30,8 +30,8 @@ void BlockTridiagonal::apply_fixed_dofs(const std::vector<unsigned char>& fixed)
       diagonal_[i].row(a).setZero();
       diagonal_[i].col(a).setZero();
       diagonal_[i](a, a) = 1.0;
-      if (i > 0) lower_[i - 1].row(a).setZero();      // row 3i+a, columns of block i-1
-      if (i + 1 < n) lower_[i].col(a).setZero();      // column 3i+a, rows of block i+1
+      if (i > 0) lower_[i - 1].row(a).setZero();  // row 3i+a, columns of block i-1
+      if (i + 1 < n) lower_[i].col(a).setZero();  // column 3i+a, rows of block i+1
     }
   }
 }

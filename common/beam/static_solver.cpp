@@ -10,10 +10,10 @@ namespace sinew::common {
 std::optional<std::string> StaticSolverOptions::validate() const {
   if (load_steps < 1) return "load_steps = " + std::to_string(load_steps) + " must be >= 1";
   if (max_iterations_per_step < 1) {
-    return "max_iterations_per_step = " + std::to_string(max_iterations_per_step) +
-           " must be >= 1";
+    return "max_iterations_per_step = " + std::to_string(max_iterations_per_step) + " must be >= 1";
   }
-  if (max_step_cuts < 0) return "max_step_cuts = " + std::to_string(max_step_cuts) + " must be >= 0";
+  if (max_step_cuts < 0)
+    return "max_step_cuts = " + std::to_string(max_step_cuts) + " must be >= 0";
   if (!(displacement_tolerance >= 0.0 && displacement_tolerance <= 1e-3)) {
     std::ostringstream s;
     s << "displacement_tolerance = " << displacement_tolerance << " must be in [0, 1e-3]";
@@ -29,11 +29,16 @@ std::optional<std::string> StaticSolverOptions::validate() const {
 
 const char* to_string(StaticSolverStatus status) {
   switch (status) {
-    case StaticSolverStatus::kConverged: return "converged";
-    case StaticSolverStatus::kMaxIterations: return "max_iterations";
-    case StaticSolverStatus::kSingularSystem: return "singular_system";
-    case StaticSolverStatus::kNonFinite: return "non_finite";
-    case StaticSolverStatus::kInvalidInput: return "invalid_input";
+    case StaticSolverStatus::kConverged:
+      return "converged";
+    case StaticSolverStatus::kMaxIterations:
+      return "max_iterations";
+    case StaticSolverStatus::kSingularSystem:
+      return "singular_system";
+    case StaticSolverStatus::kNonFinite:
+      return "non_finite";
+    case StaticSolverStatus::kInvalidInput:
+      return "invalid_input";
   }
   return "unknown";
 }
@@ -123,16 +128,14 @@ StaticSolverSummary StaticBeamSolver::solve(const Eigen::Ref<const Eigen::Vector
   auto finish = [&](StaticSolverStatus status, const char* message) {
     summary.status = status;
     summary.message = message;
-    summary.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return summary;
   };
 
   const int dofs = model_->num_dofs();
   if (!model_->valid()) return finish(StaticSolverStatus::kInvalidInput, "invalid beam model");
   if (options_error_) return finish(StaticSolverStatus::kInvalidInput, "invalid options");
-  if (loads.size() != dofs || u.size() != dofs ||
-      (start_loads && start_loads->size() != dofs)) {
+  if (loads.size() != dofs || u.size() != dofs || (start_loads && start_loads->size() != dofs)) {
     return finish(StaticSolverStatus::kInvalidInput, "vector sizes differ from 3 x nodes");
   }
   if (!loads.allFinite() || !u.allFinite() || (start_loads && !start_loads->allFinite())) {
@@ -161,7 +164,7 @@ StaticSolverSummary StaticBeamSolver::solve(const Eigen::Ref<const Eigen::Vector
   }
 
   const double nominal = 1.0 / options_.load_steps;
-  double lambda = 0.0;      // converged load factor
+  double lambda = 0.0;  // converged load factor
   double increment = nominal;
   double last_increment = 0.0;  // increment that led to the current converged state
   u_last_ = u;

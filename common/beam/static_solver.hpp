@@ -1,10 +1,10 @@
 #pragma once
-/// Static equilibrium of a plane beam under nodal loads: p(u) = f on the free dofs (seed 000, eq. 8,
-/// with f the applied load), by Newton–Raphson on K_T du = −(p(u) − f) with load stepping.
+/// Static equilibrium of a plane beam under nodal loads: p(u) = f on the free dofs (seed 000, eq.
+/// 8, with f the applied load), by Newton–Raphson on K_T du = −(p(u) − f) with load stepping.
 ///
 /// Load steps go from the start loads (zero unless given) to the target loads in equal increments;
-/// each step is warm-started by extrapolating the last two converged states, and a step that does not
-/// converge is halved and retried. The solver is sized once at construction: solve() does not
+/// each step is warm-started by extrapolating the last two converged states, and a step that does
+/// not converge is halved and retried. The solver is sized once at construction: solve() does not
 /// allocate, so the real-time tracker can run a verification solve inside a frame.
 
 #include <Eigen/Core>
@@ -50,10 +50,10 @@ const char* to_string(StaticSolverStatus status);
 
 struct StaticSolverSummary {
   StaticSolverStatus status = StaticSolverStatus::kInvalidInput;
-  int iterations = 0;        ///< Newton iterations over all increments
-  int load_steps_taken = 0;  ///< converged increments
-  int step_cuts = 0;         ///< increments halved after a failure
-  double load_factor = 0.0;  ///< fraction of the way to the target loads that was reached, [0, 1]
+  int iterations = 0;          ///< Newton iterations over all increments
+  int load_steps_taken = 0;    ///< converged increments
+  int step_cuts = 0;           ///< increments halved after a failure
+  double load_factor = 0.0;    ///< fraction of the way to the target loads that was reached, [0, 1]
   double residual_norm = 0.0;  ///< final scaled ‖r‖∞ (see residual_tolerance)
   double seconds = 0.0;
   const char* message = "";  ///< static text with the reason for a failure

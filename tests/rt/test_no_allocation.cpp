@@ -41,7 +41,9 @@ extern "C" void* realloc(void* p, std::size_t n) {
   if (g_counting.load(std::memory_order_relaxed)) ++g_mallocs;
   return __libc_realloc(p, n);
 }
-extern "C" void free(void* p) { __libc_free(p); }
+extern "C" void free(void* p) {
+  __libc_free(p);
+}
 
 void* operator new(std::size_t n) {
   if (g_counting.load(std::memory_order_relaxed)) ++g_news;
@@ -53,10 +55,18 @@ void* operator new[](std::size_t n) {
   if (void* p = __libc_malloc(n ? n : 1)) return p;
   throw std::bad_alloc();
 }
-void operator delete(void* p) noexcept { __libc_free(p); }
-void operator delete[](void* p) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
+void operator delete(void* p) noexcept {
+  __libc_free(p);
+}
+void operator delete[](void* p) noexcept {
+  __libc_free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  __libc_free(p);
+}
+void operator delete[](void* p, std::size_t) noexcept {
+  __libc_free(p);
+}
 
 namespace sinew::rt {
 namespace {

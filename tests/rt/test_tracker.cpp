@@ -14,13 +14,14 @@ namespace {
 
 using sinew::testing::GreyImage;
 
-// A cantilever along +x from (60, 60), 200 px, 10 tracker elements; the truth is solved on a 4x finer
-// mesh and rendered from it.
+// A cantilever along +x from (60, 60), 200 px, 10 tracker elements; the truth is solved on a 4x
+// finer mesh and rendered from it.
 struct Cantilever {
   int elements = 10;
   double length = 200.0;
   Eigen::Vector2d origin{60.0, 60.0};
-  common::BeamMaterial material{1000.0, 1000.0 / 2.6, 6.0, 18.0};  // h = 6 px band: A = h, I = h³/12
+  common::BeamMaterial material{1000.0, 1000.0 / 2.6, 6.0,
+                                18.0};  // h = 6 px band: A = h, I = h³/12
   double EI() const { return material.E * material.I; }
 
   common::BeamDescription description(int per) const {

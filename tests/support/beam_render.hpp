@@ -1,7 +1,7 @@
 #pragma once
-/// A small renderer for rt tests: draws a beam's centreline (a dense polyline) as a dark band or line
-/// on a bright background with a 1-px anti-aliasing ramp, plus optional Gaussian noise. Tests use it
-/// to make frames with known truth without OpenCV.
+/// A small renderer for rt tests: draws a beam's centreline (a dense polyline) as a dark band or
+/// line on a bright background with a 1-px anti-aliasing ramp, plus optional Gaussian noise. Tests
+/// use it to make frames with known truth without OpenCV.
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -19,7 +19,8 @@ namespace sinew::testing {
 struct GreyImage {
   int width = 0, height = 0;
   std::vector<std::uint8_t> pixels;
-  GreyImage(int w, int h, std::uint8_t value) : width(w), height(h), pixels(std::size_t(w) * h, value) {}
+  GreyImage(int w, int h, std::uint8_t value)
+      : width(w), height(h), pixels(std::size_t(w) * h, value) {}
   rt::ImageView view() const { return {pixels.data(), width, height, width}; }
 };
 
@@ -49,8 +50,10 @@ inline void draw_band(GreyImage& img, const std::vector<Eigen::Vector2d>& pts, d
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  const int x0 = std::max(0, int(lo.x() - half_width - 2)), x1 = std::min(img.width - 1, int(hi.x() + half_width + 2));
-  const int y0 = std::max(0, int(lo.y() - half_width - 2)), y1 = std::min(img.height - 1, int(hi.y() + half_width + 2));
+  const int x0 = std::max(0, int(lo.x() - half_width - 2)),
+            x1 = std::min(img.width - 1, int(hi.x() + half_width + 2));
+  const int y0 = std::max(0, int(lo.y() - half_width - 2)),
+            y1 = std::min(img.height - 1, int(hi.y() + half_width + 2));
   for (int y = y0; y <= y1; ++y) {
     for (int x = x0; x <= x1; ++x) {
       const Eigen::Vector2d q(x, y);
@@ -69,7 +72,8 @@ inline void draw_band(GreyImage& img, const std::vector<Eigen::Vector2d>& pts, d
 
 inline void add_noise(GreyImage& img, double sigma, std::mt19937& gen) {
   std::normal_distribution<double> n(0.0, sigma);
-  for (auto& v : img.pixels) v = static_cast<std::uint8_t>(std::clamp(std::lround(v + n(gen)), 0L, 255L));
+  for (auto& v : img.pixels)
+    v = static_cast<std::uint8_t>(std::clamp(std::lround(v + n(gen)), 0L, 255L));
 }
 
 }  // namespace sinew::testing

@@ -1,8 +1,8 @@
 #pragma once
 /// Finite-difference checks shared by every derivative test (tet energy, material, beam element,
-/// polar decomposition, plastic energy). One checker, used everywhere: gradients against differences
-/// of the value, Hessians/Jacobians against differences of the analytic gradient, and a guard that
-/// the compared quantity is not zero (comparing zeros proves nothing).
+/// polar decomposition, plastic energy). One checker, used everywhere: gradients against
+/// differences of the value, Hessians/Jacobians against differences of the analytic gradient, and a
+/// guard that the compared quantity is not zero (comparing zeros proves nothing).
 
 #include <gtest/gtest.h>
 
@@ -65,16 +65,16 @@ template <typename A, typename B>
                                              const Eigen::MatrixBase<B>& fd, double rel_tol,
                                              double min_norm = 1e-8) {
   if (analytic.rows() != fd.rows() || analytic.cols() != fd.cols()) {
-    return ::testing::AssertionFailure() << "shape mismatch: analytic " << analytic.rows() << "x"
-                                         << analytic.cols() << ", fd " << fd.rows() << "x"
-                                         << fd.cols();
+    return ::testing::AssertionFailure()
+           << "shape mismatch: analytic " << analytic.rows() << "x" << analytic.cols() << ", fd "
+           << fd.rows() << "x" << fd.cols();
   }
   if (!analytic.allFinite()) return ::testing::AssertionFailure() << "analytic has NaN/inf";
   const double fd_norm = fd.norm();
   if (fd_norm < min_norm) {
     return ::testing::AssertionFailure()
-           << "finite-difference derivative is (near) zero, |fd| = " << fd_norm
-           << " < " << min_norm << ": the check would prove nothing";
+           << "finite-difference derivative is (near) zero, |fd| = " << fd_norm << " < " << min_norm
+           << ": the check would prove nothing";
   }
   const double err = (analytic - fd).norm();
   if (err > rel_tol * fd_norm) {

@@ -34,9 +34,9 @@ Outcome simulate_text(const std::string& name, const std::string& text) {
   const auto dir = scratch_dir("sinew_simulate_" + name);
   write_text(dir / "beam.json", text);
   Outcome o;
-  o.result = run_tool(kTool + " --beam " + (dir / "beam.json").string() + " --out " +
-                          (dir / "state.json").string(),
-                      dir);
+  o.result = run_tool(
+      kTool + " --beam " + (dir / "beam.json").string() + " --out " + (dir / "state.json").string(),
+      dir);
   o.wrote_output = std::filesystem::exists(dir / "state.json");
   return o;
 }
@@ -44,9 +44,9 @@ Outcome simulate_text(const std::string& name, const std::string& text) {
 TEST(SinewSimulate, CantileverMatchesElastica) {
   const auto dir = scratch_dir("sinew_simulate_ok");
   write_text(dir / "beam.json", cantilever(3.0).dump());
-  const auto r = run_tool(kTool + " --beam " + (dir / "beam.json").string() + " --out " +
-                              (dir / "state.json").string(),
-                          dir);
+  const auto r = run_tool(
+      kTool + " --beam " + (dir / "beam.json").string() + " --out " + (dir / "state.json").string(),
+      dir);
   ASSERT_EQ(r.exit_status, 0) << r.err;
   const auto state = nlohmann::json::parse(sinew::testing::read_text(dir / "state.json"));
   EXPECT_TRUE(state["converged"].get<bool>());
@@ -86,10 +86,16 @@ TEST(SinewSimulate, BadInputGivesOneLineErrorAndNoOutput) {
       {"fixed_node_range", with([](auto& b) { b["fixed"][0]["node"] = -1; }), "fixed[0].node"},
       {"bad_dof", with([](auto& b) { b["fixed"][0]["dofs"][1] = "uz"; }), "fixed[0].dofs[1]"},
       {"no_fixed_dof", with([](auto& b) { b.erase("fixed"); }), "fixed"},
-      {"pinned_only", with([](auto& b) { b["fixed"][0]["dofs"] = {"ux", "uy"}; }), "rigid"},
+      {"pinned_only", with([](auto& b) {
+         b["fixed"][0]["dofs"] = {"ux", "uy"};
+       }),
+       "rigid"},
       {"unknown_key", with([](auto& b) { b["lods"] = 1; }), "'lods'"},
       {"duplicate_node", with([](auto& b) { b["nodes"][4] = b["nodes"][3]; }), "element 3"},
-      {"one_node", with([](auto& b) { b["nodes"] = {{0, 0}}; }), "nodes"},
+      {"one_node", with([](auto& b) {
+         b["nodes"] = {{0, 0}};
+       }),
+       "nodes"},
       {"bad_steps", with([](auto& b) { b["steps"] = 0; }), "steps"},
       {"truncated", "{\"nodes\": [[0, 0],\n [1, 0]", ":2:"},
   };
@@ -106,9 +112,9 @@ TEST(SinewSimulate, BadInputGivesOneLineErrorAndNoOutput) {
 
 TEST(SinewSimulate, UnreadableFile) {
   const auto dir = scratch_dir("sinew_simulate_missing");
-  const auto r = run_tool(kTool + " --beam " + (dir / "nope.json").string() + " --out " +
-                              (dir / "state.json").string(),
-                          dir);
+  const auto r = run_tool(
+      kTool + " --beam " + (dir / "nope.json").string() + " --out " + (dir / "state.json").string(),
+      dir);
   EXPECT_EQ(r.exit_status, 2);
   EXPECT_NE(r.err.find("cannot open"), std::string::npos) << r.err;
 }

@@ -42,7 +42,9 @@ struct Sequence {
 
 Sequence synth(const std::string& name, const std::string& args) {
   Sequence s;
-  s.dir = scratch_dir("sinew_synth_" + name);
+  // CTest runs every test case in its own process, in parallel: keep their folders apart.
+  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  s.dir = scratch_dir("sinew_synth_" + name + "_" + test);
   s.result = run_tool(kTool + " --out " + (s.dir / "out").string() + " " + args, s.dir);
   s.dir /= "out";
   if (s.result.exit_status != 0) return s;

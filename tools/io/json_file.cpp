@@ -124,8 +124,8 @@ void JsonCursor::expect_keys(const std::vector<std::string>& allowed) const {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
       const std::string where = path_.empty() ? "" : " in " + path_;
-      throw InputError(file_ + ": unknown key '" + item.key() + "'" + where + " (expected one of: " +
-                       list + ")");
+      throw InputError(file_ + ": unknown key '" + item.key() + "'" + where +
+                       " (expected one of: " + list + ")");
     }
   }
 }

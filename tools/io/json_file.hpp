@@ -37,10 +37,10 @@ class JsonCursor {
   JsonCursor at(const std::string& key) const;
   /// Element i of an array.
   JsonCursor at(std::size_t i) const;
-  std::size_t array_size() const;          ///< throws unless an array
-  double finite_number() const;            ///< throws unless a finite number
-  double positive_number() const;          ///< throws unless finite and > 0
-  long integer() const;                    ///< throws unless an integer
+  std::size_t array_size() const;  ///< throws unless an array
+  double finite_number() const;    ///< throws unless a finite number
+  double positive_number() const;  ///< throws unless finite and > 0
+  long integer() const;            ///< throws unless an integer
   bool boolean() const;
   std::string string() const;
   /// Throws when the object has a key outside `allowed` (catches typos such as "lods").

@@ -35,8 +35,8 @@ int run(const std::string& beam_path, const std::string& out_path, bool quiet) {
     const double L = model.total_length();
     double lambda = 0.0;
     for (int i = 0; i < model.num_dofs(); ++i) {
-      lambda = std::max(lambda, std::abs(loads[i]) * (i % 3 == 2 ? L : L * L) /
-                                    model.max_bending_stiffness());
+      lambda = std::max(
+          lambda, std::abs(loads[i]) * (i % 3 == 2 ? L : L * L) / model.max_bending_stiffness());
     }
     options.load_steps = std::max(1, static_cast<int>(std::ceil(4.0 * lambda)));
   }
@@ -46,7 +46,8 @@ int run(const std::string& beam_path, const std::string& out_path, bool quiet) {
     if (o.has("max_iterations_per_step")) {
       options.max_iterations_per_step = static_cast<int>(o.at("max_iterations_per_step").integer());
     }
-    if (o.has("max_step_cuts")) options.max_step_cuts = static_cast<int>(o.at("max_step_cuts").integer());
+    if (o.has("max_step_cuts"))
+      options.max_step_cuts = static_cast<int>(o.at("max_step_cuts").integer());
     if (o.has("residual_tolerance")) {
       options.residual_tolerance = o.at("residual_tolerance").finite_number();
     }

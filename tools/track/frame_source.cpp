@@ -12,7 +12,8 @@ namespace sinew::tools {
 namespace {
 bool is_image_file(const std::filesystem::path& p) {
   std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
          ext == ".bmp" || ext == ".pgm" || ext == ".ppm";
 }
@@ -29,10 +30,12 @@ FrameSource::FrameSource(const std::string& input, int first, int stride, int co
     description_ = "image sequence " + input;
   } else if (fs::is_directory(input, ec)) {
     for (const auto& entry : fs::directory_iterator(input)) {
-      if (entry.is_regular_file() && is_image_file(entry.path())) files_.push_back(entry.path().string());
+      if (entry.is_regular_file() && is_image_file(entry.path()))
+        files_.push_back(entry.path().string());
     }
     std::sort(files_.begin(), files_.end());
-    if (files_.empty()) throw InputError(input + ": folder holds no images (png, jpg, tif, bmp, pgm)");
+    if (files_.empty())
+      throw InputError(input + ": folder holds no images (png, jpg, tif, bmp, pgm)");
     description_ = "folder " + input + " (" + std::to_string(files_.size()) + " images)";
   } else if (!fs::exists(input, ec)) {
     throw InputError(input + ": no such file or folder");
@@ -72,7 +75,8 @@ bool FrameSource::next(cv::Mat& grey, int& index) {
     grey = buffer_;
   }
   if (grey.depth() == CV_16U) grey.convertTo(grey, CV_8U, 1.0 / 256.0);
-  if (grey.type() != CV_8UC1) throw InputError(input_ + ": frame " + std::to_string(index) + " is not an 8- or 16-bit image");
+  if (grey.type() != CV_8UC1)
+    throw InputError(input_ + ": frame " + std::to_string(index) + " is not an 8- or 16-bit image");
   ++delivered_;
   return true;
 }

@@ -1,12 +1,14 @@
 // sinew-track: tracks a beam-like object through a video and recovers the forces that bend it.
-//   sinew-track --input <video | image | folder | pattern%04d.png> --init init.json --out results.jsonl
+//   sinew-track --input <video | image | folder | pattern%04d.png> --init init.json --out
+//   results.jsonl
 //               [--overlay <folder | file.mp4>] [--stride K] [--first N] [--count M]
 //               [--model beam|snake] [--truth truth.jsonl]
-// One JSON line per processed frame: {"frame", "status", "nodes": [[x, y, θ]], "forces": [[fx, fy, m]],
-// "rms_px", "verify_px", "iterations", "latency_us", ...}. Exit status: 0 done, 2 bad input.
+// One JSON line per processed frame: {"frame", "status", "nodes": [[x, y, θ]], "forces": [[fx, fy,
+// m]], "rms_px", "verify_px", "iterations", "latency_us", ...}. Exit status: 0 done, 2 bad input.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -32,8 +34,8 @@ struct TrackInit {
 TrackInit read_init(const std::string& path) {
   const nlohmann::json doc = tools::read_json_file(path);
   const tools::JsonCursor root(doc, path);
-  root.expect_keys({"nodes", "fixed", "material", "observation", "half_width_px", "load_nodes",
-                    "options"});
+  root.expect_keys(
+      {"nodes", "fixed", "material", "observation", "half_width_px", "load_nodes", "options"});
   TrackInit init;
   init.beam = tools::parse_beam_description(root);
   const tools::JsonCursor obs = root.at("observation");
@@ -67,13 +69,15 @@ TrackInit read_init(const std::string& path) {
   if (root.has("options")) {
     const tools::JsonCursor o = root.at("options");
     auto& t = init.options;
-    const std::map<std::string, double*> reals = {
-        {"min_strength", &t.min_strength},       {"image_stiffness", &t.image_stiffness},
-        {"bending_memory", &t.bending_memory},
-        {"convergence_px", &t.convergence_px},   {"tukey_c", &t.tukey_c},
-        {"min_sigma_px", &t.min_sigma_px},       {"min_inlier_fraction", &t.min_inlier_fraction},
-        {"snake_stretch_weight", &t.snake_stretch_weight},
-        {"snake_bend_weight", &t.snake_bend_weight}};
+    const std::map<std::string, double*> reals = {{"min_strength", &t.min_strength},
+                                                  {"image_stiffness", &t.image_stiffness},
+                                                  {"bending_memory", &t.bending_memory},
+                                                  {"convergence_px", &t.convergence_px},
+                                                  {"tukey_c", &t.tukey_c},
+                                                  {"min_sigma_px", &t.min_sigma_px},
+                                                  {"min_inlier_fraction", &t.min_inlier_fraction},
+                                                  {"snake_stretch_weight", &t.snake_stretch_weight},
+                                                  {"snake_bend_weight", &t.snake_bend_weight}};
     const std::map<std::string, int*> integers = {
         {"samples_per_element", &t.samples_per_element},
         {"search_range_px", &t.search_range_px},
@@ -85,7 +89,8 @@ TrackInit read_init(const std::string& path) {
         {"max_newton_iterations", &t.max_newton_iterations},
         {"verify_load_steps", &t.verify_load_steps},
         {"max_load_fit_iterations", &t.max_load_fit_iterations}};
-    std::vector<std::string> keys = {"predict", "verify_forces", "polarity", "observe_ends", "fit_moments"};
+    std::vector<std::string> keys = {"predict", "verify_forces", "polarity", "observe_ends",
+                                     "fit_moments"};
     for (const auto& kv : reals) keys.push_back(kv.first);
     for (const auto& kv : integers) keys.push_back(kv.first);
     o.expect_keys(keys);
@@ -167,8 +172,8 @@ void draw_arrow(cv::Mat& img, const Eigen::Vector2d& from, const Eigen::Vector2d
 
 void draw_overlay(cv::Mat& img, const rt::Tracker& tracker, const rt::FrameSummary& s, int frame) {
   const auto& model = tracker.model();
-  const cv::Scalar curve_colour = s.status == rt::FrameStatus::kLost ? cv::Scalar(0, 0, 255)
-                                                                     : cv::Scalar(0, 230, 255);
+  const cv::Scalar curve_colour =
+      s.status == rt::FrameStatus::kLost ? cv::Scalar(0, 0, 255) : cv::Scalar(0, 230, 255);
   for (int e = 0; e < model.num_elements(); ++e) {
     cv::Point2d prev;
     for (int k = 0; k <= 10; ++k) {
@@ -215,7 +220,8 @@ nlohmann::json rows3(const Eigen::VectorXd& v, int n) {
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(std::floor(q * (v.size() - 1) + 0.5)));
+  const std::size_t k =
+      std::min(v.size() - 1, static_cast<std::size_t>(std::floor(q * (v.size() - 1) + 0.5)));
   return v[k];
 }
 
@@ -224,6 +230,7 @@ struct Args {
   int stride = 1, first = 0, count = -1;
   bool quiet = false;
   bool compare_snake = false;
+  bool verbose = false;
 };
 
 // RMS distance (pixels) between a tracker's nodes and the truth nodes.
@@ -239,13 +246,13 @@ double node_rms_error(const rt::Tracker& tracker, const Eigen::MatrixXd& truth_n
 int run(const Args& args) {
   TrackInit init = read_init(args.init);
   if (args.model == "snake") init.options.model = rt::TrackerModel::kSnake;
-  const std::map<int, TruthFrame> truth = args.truth.empty() ? std::map<int, TruthFrame>{}
-                                                             : read_truth(args.truth);
+  const std::map<int, TruthFrame> truth =
+      args.truth.empty() ? std::map<int, TruthFrame>{} : read_truth(args.truth);
   tools::FrameSource source(args.input, args.first, args.stride, args.count);
 
-  rt::Tracker tracker(init.beam, init.options,
-                      init.options.model == rt::TrackerModel::kBeam ? init.load_nodes
-                                                                    : std::vector<int>{});
+  rt::Tracker tracker(
+      init.beam, init.options,
+      init.options.model == rt::TrackerModel::kBeam ? init.load_nodes : std::vector<int>{});
   if (!tracker.valid()) throw tools::InputError(args.init + ": " + tracker.error());
   // The seed's comparison (§5.2): the snake-like baseline on the same frames, same image term.
   rt::TrackerOptions snake_options = init.options;
@@ -258,10 +265,10 @@ int run(const Args& args) {
   std::ofstream out(args.out + ".tmp");
   if (!out) throw tools::InputError(args.out + ": cannot open file for writing");
   cv::VideoWriter video;
-  const bool overlay_video = !args.overlay.empty() &&
-                             (args.overlay.size() > 4 &&
-                              (args.overlay.substr(args.overlay.size() - 4) == ".mp4" ||
-                               args.overlay.substr(args.overlay.size() - 4) == ".avi"));
+  const bool overlay_video =
+      !args.overlay.empty() &&
+      (args.overlay.size() > 4 && (args.overlay.substr(args.overlay.size() - 4) == ".mp4" ||
+                                   args.overlay.substr(args.overlay.size() - 4) == ".avi"));
   if (!args.overlay.empty() && !overlay_video) std::filesystem::create_directories(args.overlay);
 
   std::vector<double> latencies, errors, load_errors;
@@ -353,14 +360,30 @@ int run(const Args& args) {
       }
     }
     out << line.dump() << "\n";
+    if (args.verbose) {
+      std::printf("frame %4d  %-13s latency %6.0f us", index, rt::to_string(s.status),
+                  s.seconds * 1e6);
+      if (line.contains("error_px"))
+        std::printf("  node error %.3f px", line["error_px"].get<double>());
+      if (line.contains("load_error")) {
+        std::printf("  tip load error %5.1f %%", 100 * line["load_error"].get<double>());
+      }
+      if (args.compare_snake && line["snake"].contains("error_px")) {
+        std::printf("  | snake %-13s node error %.2f px", rt::to_string(snake_summary.status),
+                    line["snake"]["error_px"].get<double>());
+      }
+      std::printf("\n");
+    }
 
     if (!args.overlay.empty()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
       draw_overlay(colour, tracker, s, index);
       if (overlay_video) {
         if (!video.isOpened()) {
-          video.open(args.overlay, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 30.0, colour.size());
-          if (!video.isOpened()) throw tools::InputError(args.overlay + ": cannot write a video here");
+          video.open(args.overlay, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 30.0,
+                     colour.size());
+          if (!video.isOpened())
+            throw tools::InputError(args.overlay + ": cannot write a video here");
         }
         video.write(colour);
       } else {
@@ -431,13 +454,15 @@ int main(int argc, char** argv) {
   app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)")->required();
   app.add_option("--overlay", args.overlay, "folder for overlay PNGs, or a .mp4/.avi file");
   app.add_option("--stride", args.stride, "process every K-th frame")->check(CLI::PositiveNumber);
-  app.add_option("--first", args.first, "index of the first frame to process")->check(CLI::NonNegativeNumber);
+  app.add_option("--first", args.first, "index of the first frame to process")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--count", args.count, "number of frames to process (default: all)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--model", args.model, "beam (default) or snake (the seed's baseline)")
       ->check(CLI::IsMember({"beam", "snake"}));
   app.add_option("--truth", args.truth, "truth.jsonl from sinew-synth: report errors against it");
   app.add_flag("--quiet", args.quiet, "print nothing but errors");
+  app.add_flag("--verbose", args.verbose, "print one line per frame (errors against --truth)");
   app.add_flag("--compare-snake", args.compare_snake,
                "also run the snake baseline on the same frames and report both");
   try {

@@ -13,12 +13,12 @@ namespace {
 BlockTridiagonal random_matrix(int n, double shift, std::mt19937& gen) {
   BlockTridiagonal A(n);
   for (int i = 0; i < n; ++i) {
-    Eigen::Matrix3d B = Eigen::Map<const Eigen::Matrix3d>(
-        sinew::testing::random_vector(9, 1.0, gen).data());
+    Eigen::Matrix3d B =
+        Eigen::Map<const Eigen::Matrix3d>(sinew::testing::random_vector(9, 1.0, gen).data());
     A.diagonal(i) = B + B.transpose() + shift * Eigen::Matrix3d::Identity();
     if (i + 1 < n) {
-      A.lower(i) = Eigen::Map<const Eigen::Matrix3d>(
-          sinew::testing::random_vector(9, 1.0, gen).data());
+      A.lower(i) =
+          Eigen::Map<const Eigen::Matrix3d>(sinew::testing::random_vector(9, 1.0, gen).data());
     }
   }
   return A;

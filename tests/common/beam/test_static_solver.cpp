@@ -43,7 +43,8 @@ std::vector<TipLoadRow> read_tip_load_table() {
 // EI = 1, EA = GA = 1e6 (EA·L²/EI = 1e6: inextensible and unshearable to within ~1e-5).
 BeamModel cantilever(const std::vector<double>& s, double angle) {
   Eigen::Matrix2Xd X(2, s.size());
-  for (std::size_t i = 0; i < s.size(); ++i) X.col(i) << s[i] * std::cos(angle), s[i] * std::sin(angle);
+  for (std::size_t i = 0; i < s.size(); ++i)
+    X.col(i) << s[i] * std::cos(angle), s[i] * std::sin(angle);
   BeamMaterial m{1e6, 1e6, 1.0, 1e-6};
   BeamDescription d = BeamDescription::uniform(X, m);
   d.clamp(0);
