@@ -1,5 +1,7 @@
 #include "offline/plastic_strain.hpp"
 
+#include "common/geometry/determinant.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
@@ -25,39 +27,6 @@ Matrix9x6d make_basis() {
     Y(vec_index(col, row), k) = 1.0;
   }
   return Y;
-}
-
-// Cross-product matrix: cross_matrix(v) w = v × w.
-Eigen::Matrix3d cross_matrix(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d M;
-  M << 0.0, -v.z(), v.y(),  //
-      v.z(), 0.0, -v.x(),   //
-      -v.y(), v.x(), 0.0;
-  return M;
-}
-
-// ∂ det/∂F = cof F (columns f1×f2, f2×f0, f0×f1 of the columns f_a of F).
-Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
-  Eigen::Matrix3d C;
-  C.col(0) = F.col(1).cross(F.col(2));
-  C.col(1) = F.col(2).cross(F.col(0));
-  C.col(2) = F.col(0).cross(F.col(1));
-  return C;
-}
-
-// ∂² det/∂F² (9x9, column-major vec): block (a, b) = ∂(column a of cof F)/∂f_b.
-common::Matrix9d determinant_hessian(const Eigen::Matrix3d& F) {
-  common::Matrix9d H = common::Matrix9d::Zero();
-  const Eigen::Matrix3d c0 = cross_matrix(F.col(0));
-  const Eigen::Matrix3d c1 = cross_matrix(F.col(1));
-  const Eigen::Matrix3d c2 = cross_matrix(F.col(2));
-  H.block<3, 3>(0, 3) = -c2;  // ∂(f1×f2)/∂f1
-  H.block<3, 3>(0, 6) = c1;   // ∂(f1×f2)/∂f2
-  H.block<3, 3>(3, 0) = c2;   // ∂(f2×f0)/∂f0
-  H.block<3, 3>(3, 6) = -c0;  // ∂(f2×f0)/∂f2
-  H.block<3, 3>(6, 0) = -c1;  // ∂(f0×f1)/∂f0
-  H.block<3, 3>(6, 3) = c0;   // ∂(f0×f1)/∂f1
-  return H;
 }
 
 // Sylvester's criterion for a symmetric matrix: all leading principal minors positive.
@@ -140,9 +109,9 @@ PlasticStrainDerivatives plastic_strain_derivatives(const Vector6d& s,
   if (order == PlasticDerivativeOrder::kValue) return d;
 
   // Determinant: polynomial in s, valid for any finite s (chain rule through vec(Fp) = Y s).
-  d.ddet_ds.noalias() = Y.transpose() * vec(cofactor(d.Fp));
+  d.ddet_ds.noalias() = Y.transpose() * vec(common::determinant_gradient(d.Fp));
   if (order == PlasticDerivativeOrder::kSecond) {
-    const Matrix9x6d H_Y = determinant_hessian(d.Fp) * Y;
+    const Matrix9x6d H_Y = common::determinant_hessian(d.Fp) * Y;
     d.d2det_ds2.noalias() = Y.transpose() * H_Y;
   }
 

@@ -1,5 +1,7 @@
 #include "common/material/stable_neo_hookean.hpp"
 
+#include "common/geometry/determinant.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <sstream>
@@ -7,24 +9,6 @@
 namespace sinew::common {
 
 namespace {
-
-// Cross-product matrix: cross_matrix(v) w = v × w.
-Eigen::Matrix3d cross_matrix(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d M;
-  M << 0.0, -v.z(), v.y(),  //
-      v.z(), 0.0, -v.x(),   //
-      -v.y(), v.x(), 0.0;
-  return M;
-}
-
-// ∂J/∂F = cof F: its columns are f1×f2, f2×f0, f0×f1 for the columns f_k of F.
-Eigen::Matrix3d determinant_gradient(const Eigen::Matrix3d& F) {
-  Eigen::Matrix3d g;
-  g.col(0) = F.col(1).cross(F.col(2));
-  g.col(1) = F.col(2).cross(F.col(0));
-  g.col(2) = F.col(0).cross(F.col(1));
-  return g;
-}
 
 template <int N>
 Eigen::Matrix<double, N, N> project_to_psd_impl(const Eigen::Matrix<double, N, N>& A) {
@@ -106,17 +90,7 @@ Matrix9d StableNeoHookean::dPdF(const Eigen::Matrix3d& F) const {
   H.noalias() += (2.0 * mu_ / ((I_C + 1.0) * (I_C + 1.0))) * f * f.transpose();
   H.noalias() += lambda_ * g * g.transpose();
 
-  // ∂²J/∂F²: block (a, b) = ∂(∂J/∂f_a)/∂f_b for columns f_a of F, e.g. ∂(f1×f2)/∂f2 = [f1]×.
-  const double s = lambda_ * (J - alpha_);
-  const Eigen::Matrix3d f0 = s * cross_matrix(F.col(0));
-  const Eigen::Matrix3d f1 = s * cross_matrix(F.col(1));
-  const Eigen::Matrix3d f2 = s * cross_matrix(F.col(2));
-  H.block<3, 3>(0, 3) -= f2;
-  H.block<3, 3>(0, 6) += f1;
-  H.block<3, 3>(3, 0) += f2;
-  H.block<3, 3>(3, 6) -= f0;
-  H.block<3, 3>(6, 0) -= f1;
-  H.block<3, 3>(6, 3) += f0;
+  H.noalias() += (lambda_ * (J - alpha_)) * determinant_hessian(F);
   return H;
 }
 
