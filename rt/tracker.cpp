@@ -109,6 +109,7 @@ std::optional<std::string> TrackerOptions::validate() const {
     return field_error("max_newton_iterations", max_newton_iterations, "must be >= 1");
   }
   if (!(convergence_px > 0.0)) return field_error("convergence_px", convergence_px, "must be > 0");
+  if (!(research_px >= 0.0)) return field_error("research_px", research_px, "must be >= 0");
   if (!(tukey_c > 0.0)) return field_error("tukey_c", tukey_c, "must be > 0");
   if (!(min_sigma_px > 0.0)) return field_error("min_sigma_px", min_sigma_px, "must be > 0");
   if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
@@ -251,9 +252,10 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   jacobian_rows_.resize(lines_.size());
   scratch_.resize(profile_search_.scratch_size());
   const int dofs = model_.num_dofs();
-  for (Eigen::VectorXd* v : {&u_, &u_prev1_, &u_prev2_, &u_start_, &p_ref_, &gradient_, &du_,
-                             &forces_, &fitted_loads_, &u_verify_, &verify_loads_prev_,
-                             &verify_previous_state_, &verify_previous_forces_, &verify_backup_}) {
+  for (Eigen::VectorXd* v :
+       {&u_, &u_prev1_, &u_prev2_, &u_start_, &p_ref_, &gradient_, &du_, &forces_, &fitted_loads_,
+        &u_verify_, &verify_loads_prev_, &verify_previous_state_, &verify_previous_forces_,
+        &verify_backup_, &u_searched_}) {
     v->setZero(dofs);
   }
   for (Eigen::VectorXd* v : {&u_fit_, &fit_loads_prev_, &fit_rhs_, &fit_z_}) {
@@ -586,7 +588,12 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   for (int rep = 0; rep < options_.max_repetitions && !failed; ++rep) {
     // The first frame is where the initial polyline was drawn: no motion to catch up with.
     const bool wide = rep == 0 && frames_ > 0;
-    search(frame, wide ? options_.first_search_range_px : options_.search_range_px);
+    // Search lines keep their position between repetitions, so their candidates stay valid while
+    // the model moves little: search again only after a move larger than research_px.
+    if (rep == 0 || max_node_distance(u_, u_searched_) > options_.research_px) {
+      search(frame, wide ? options_.first_search_range_px : options_.search_range_px);
+      u_searched_ = u_;
+    }
     strongest_candidate_ = wide;
     u_start_ = u_;
     internal_force_at_start();

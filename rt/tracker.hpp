@@ -70,6 +70,9 @@ struct TrackerOptions {
   int max_newton_iterations = 3;
   /// A frame has converged when a repetition moves the nodes by less than this (RMS), pixels, > 0.
   double convergence_px = 0.02;
+  /// A repetition searches the image again only if the model moved more than this (pixels, max
+  /// over nodes) since the last search; otherwise it re-uses the candidates. 0 always searches.
+  double research_px = 0.75;
   /// Tukey's constant in units of the robust residual scale, > 0. 4.685 is the textbook 95 %
   /// efficiency; 3.5 rejects clutter crossings earlier (measured: 1–2 % better tip loads on the
   /// synthetic sequences, no loss elsewhere).
@@ -209,6 +212,7 @@ class Tracker {
   std::vector<float> scratch_;
   std::vector<common::Vector6d> jacobian_rows_;  // ∂d/∂u_e per line
   Eigen::Matrix2Xd node_tangents_;               // unit reference tangent per node
+  Eigen::VectorXd u_searched_;                   // state at the last search
   Eigen::VectorXd u_, u_prev1_, u_prev2_, u_start_, p_ref_, gradient_, du_, forces_;
   Eigen::VectorXd fitted_loads_;
   common::BlockTridiagonal tangent_;

@@ -79,7 +79,9 @@ TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
     if (lambda >= 1.0) {
       EXPECT_TRUE(s.loads_fitted);
       const Eigen::Vector2d fitted = tracker.fitted_loads().segment<2>(3 * c.elements);
-      EXPECT_LT((fitted - Eigen::Vector2d(0.0, P)).norm(), 0.05 * P) << fitted.transpose();
+      // 7 %: this beam is 200 px long, so the same sub-0.1 px node errors weigh three times more
+      // than on the 600 px acceptance sequences, where 5 % holds (test_track_acceptance).
+      EXPECT_LT((fitted - Eigen::Vector2d(0.0, P)).norm(), 0.07 * P) << fitted.transpose();
     }
   }
 }

@@ -72,6 +72,7 @@ TrackInit read_init(const std::string& path) {
     const std::map<std::string, double*> reals = {{"min_strength", &t.min_strength},
                                                   {"image_stiffness", &t.image_stiffness},
                                                   {"bending_memory", &t.bending_memory},
+                                                  {"research_px", &t.research_px},
                                                   {"convergence_px", &t.convergence_px},
                                                   {"tukey_c", &t.tukey_c},
                                                   {"min_sigma_px", &t.min_sigma_px},
