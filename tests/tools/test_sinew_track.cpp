@@ -25,8 +25,9 @@ fs::path sequence() {
   static const fs::path dir = [] {
     const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
     const fs::path d = sinew::testing::scratch_dir("sinew_track_" + test);
-    const auto r = run_tool(kBin + "sinew-synth --scenario cantilever --frames 6 --width 320 "
-                                   "--height 240 --lambda-max 0.5 --noise 4 --clutter 2 --out " +
+    const auto r = run_tool(kBin +
+                                "sinew-synth --scenario cantilever --frames 6 --width 320 "
+                                "--height 240 --lambda-max 0.5 --noise 4 --clutter 2 --out " +
                                 (d / "seq").string(),
                             d);
     EXPECT_EQ(r.exit_status, 0) << r.err;
@@ -65,8 +66,8 @@ TEST(SinewTrack, ReadsPatternFolderImageAndVideo) {
   ASSERT_EQ(pattern.lines.size(), 6u);
   for (const auto& l : pattern.lines) {
     EXPECT_EQ(l["status"], "ok");
-    for (const char* key : {"frame", "nodes", "forces", "rms_px", "verify_px", "iterations",
-                            "latency_us"}) {
+    for (const char* key :
+         {"frame", "nodes", "forces", "rms_px", "verify_px", "iterations", "latency_us"}) {
       EXPECT_TRUE(l.contains(key)) << key;
     }
   }
@@ -96,8 +97,8 @@ TEST(SinewTrack, ReadsPatternFolderImageAndVideo) {
       w.write(cv::imread((seq / name).string(), cv::IMREAD_GRAYSCALE));
     }
   }
-  const Track vid = track(video.string(), init, "--first 1 --count 4 --overlay " +
-                                                    (sequence() / "overlay").string());
+  const Track vid = track(video.string(), init,
+                          "--first 1 --count 4 --overlay " + (sequence() / "overlay").string());
   ASSERT_EQ(vid.result.exit_status, 0) << vid.result.err;
   ASSERT_EQ(vid.lines.size(), 4u);
   EXPECT_EQ(vid.lines[0]["frame"], 1);
@@ -132,10 +133,17 @@ TEST(SinewTrack, BadInputGivesOneLineAndNoResults) {
        "observation"},
       {"load_node", frames, init_with("load_node", [](auto& j) { j["load_nodes"] = {99}; }),
        "load_nodes[0]"},
-      {"option", frames, init_with("option", [](auto& j) { j["options"] = {{"search_rang", 3}}; }),
+      {"option", frames,
+       init_with("option",
+                 [](auto& j) {
+                   j["options"] = {{"search_rang", 3}};
+                 }),
        "search_rang"},
       {"option_value", frames,
-       init_with("option_value", [](auto& j) { j["options"] = {{"samples_per_element", 0}}; }),
+       init_with("option_value",
+                 [](auto& j) {
+                   j["options"] = {{"samples_per_element", 0}};
+                 }),
        "samples_per_element"},
   };
   for (const auto& c : cases) {
