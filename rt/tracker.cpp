@@ -112,6 +112,12 @@ std::optional<std::string> TrackerOptions::validate() const {
   if (!(research_px >= 0.0)) return field_error("research_px", research_px, "must be >= 0");
   if (!(tukey_c > 0.0)) return field_error("tukey_c", tukey_c, "must be > 0");
   if (!(min_sigma_px > 0.0)) return field_error("min_sigma_px", min_sigma_px, "must be > 0");
+  if (!(object_residual_px > 0.0)) {
+    return field_error("object_residual_px", object_residual_px, "must be > 0");
+  }
+  if (!(min_relative_strength >= 0.0 && min_relative_strength < 1.0)) {
+    return field_error("min_relative_strength", min_relative_strength, "must be in [0, 1)");
+  }
   if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
     return field_error("min_inlier_fraction", min_inlier_fraction, "must be in [0, 1]");
   }
@@ -192,7 +198,8 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
 
   sides_ = options_.observation == ObservationMode::kEdge ? 2 : 1;
   profile_search_.mode = options_.observation;
-  profile_search_.range_px = options_.first_search_range_px;  // sizes the scratch
+  // Sizes the scratch for the widest search: after a lost frame, twice the first range.
+  profile_search_.range_px = std::min(2 * options_.first_search_range_px, 200);
   profile_search_.max_candidates = options_.max_candidates;
   profile_search_.min_strength = static_cast<float>(options_.min_strength);
   profile_search_.band_px = options_.band_px;
@@ -248,6 +255,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
 
   candidates_.resize(lines_.size() * options_.max_candidates);
   residual_.assign(lines_.size(), kNaN);
+  strength_.assign(lines_.size(), 0.0f);
   sorted_.resize(lines_.size());
   jacobian_rows_.resize(lines_.size());
   scratch_.resize(profile_search_.scratch_size());
@@ -354,7 +362,7 @@ void Tracker::search(const ImageView& frame, int range_px) {
     const CentrelinePoint p = centreline(line.element, line.xi);
     line.centre = expected_point(line, p, &line.normal);
     ProfileSearch search = profile_search_;
-    search.range_px = range_px;
+    search.range_px = std::min(range_px, profile_search_.range_px);  // never past the scratch
     if (line.end != 0) {
       // An end: the object gives way to background going outwards along the tangent.
       search.mode = ObservationMode::kEdge;
@@ -383,6 +391,7 @@ double Tracker::residuals() {
   for (std::size_t l = 0; l < lines_.size(); ++l) {
     const SearchLine& line = lines_[l];
     residual_[l] = kNaN;
+    strength_[l] = 0.0f;
     if (line.num_candidates == 0) continue;
     const CentrelinePoint p = centreline(line.element, line.xi);
     Eigen::Vector2d direction;
@@ -394,11 +403,16 @@ double Tracker::residuals() {
     // Ends always take the nearest: beyond an object's end the strongest step is often another
     // object (a holder, the image border).
     const bool strongest = strongest_candidate_ && line.end == 0;
+    float best_strength = 0.0f;
     for (int c = 0; c < (strongest ? 1 : line.num_candidates); ++c) {
       const double d = candidates_[l * K + c].offset - model_offset;
-      if (std::abs(d) < std::abs(best)) best = d;
+      if (std::abs(d) < std::abs(best)) {
+        best = d;
+        best_strength = candidates_[l * K + c].strength;
+      }
     }
     residual_[l] = static_cast<float>(best);
+    strength_[l] = best_strength;
     // d = (observation − model)·n₀, so ∂d/∂u = −n₀ᵀ ∂c/∂u (the normal's own variation is
     // second order at the fit).
     jacobian_rows_[l] = -(line.normal.transpose() * p.jacobian).transpose();
@@ -588,10 +602,13 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   for (int rep = 0; rep < options_.max_repetitions && !failed; ++rep) {
     // The first frame is where the initial polyline was drawn: no motion to catch up with.
     const bool wide = rep == 0 && frames_ > 0;
+    // After a lost frame the object may have moved for several frames: search twice as wide.
+    const int wide_range = previous_lost_ ? std::min(2 * options_.first_search_range_px, 200)
+                                          : options_.first_search_range_px;
     // Search lines keep their position between repetitions, so their candidates stay valid while
     // the model moves little: search again only after a move larger than research_px.
     if (rep == 0 || max_node_distance(u_, u_searched_) > options_.research_px) {
-      search(frame, wide ? options_.first_search_range_px : options_.search_range_px);
+      search(frame, wide ? wide_range : options_.search_range_px);
       u_searched_ = u_;
     }
     strongest_candidate_ = wide;
@@ -638,7 +655,34 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   summary.inlier_fraction = lines_.empty() ? 0.0 : double(inliers) / double(lines_.size());
   summary.rms_px = inliers > 0 ? std::sqrt(sum_sq / inliers) : 0.0;
 
-  if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction) {
+  // An inlier only counts as the object if its response is comparable to the object's typical
+  // one (a running median over good frames): with the object gone, the search still finds noise
+  // and clutter, which a robust fit happily explains.
+  // In edge mode both boundaries of a sample must be such inliers: a thin clutter line has two
+  // edges a few pixels apart, never one at each side of the object's width.
+  int strong = 0, strong_samples = 0;
+  const float threshold = static_cast<float>(options_.min_relative_strength * typical_strength_);
+  // The residual bound is absolute: with the object gone the robust scale itself grows (24 px
+  // measured), and everything would pass a scaled test.
+  const double near = std::min(cutoff, options_.object_residual_px);
+  auto object_like = [&](std::size_t l) {
+    return std::abs(residual_[l]) < near && strength_[l] >= threshold;
+  };
+  for (std::size_t l = 0; l < lines_.size(); ++l) {
+    if (!(std::abs(residual_[l]) < cutoff)) continue;
+    sorted_[strong_samples++] = strength_[l];
+    if (!object_like(l)) continue;
+    if (sides_ == 2 && lines_[l].end == 0) {
+      // Lines come in (−side, +side) pairs of the same sample point.
+      const std::size_t partner = lines_[l].side < 0 ? l + 1 : l - 1;
+      if (!object_like(partner)) continue;
+    }
+    ++strong;
+  }
+  summary.object_fraction = lines_.empty() ? 0.0 : double(strong) / double(lines_.size());
+
+  if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction ||
+      summary.object_fraction < options_.min_inlier_fraction) {
     summary.status = FrameStatus::kLost;
     verify_have_previous_ = false;
     // Keep the last good state and forget the velocity: the next frame searches from there.
@@ -648,9 +692,17 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
       u_.setZero();
     }
     u_prev2_ = u_prev1_;
+    previous_lost_ = true;
     return finish();
   }
   summary.status = converged ? FrameStatus::kOk : FrameStatus::kNotConverged;
+  previous_lost_ = false;
+  if (strong_samples > 0) {
+    std::nth_element(sorted_.begin(), sorted_.begin() + strong_samples / 2,
+                     sorted_.begin() + strong_samples);
+    const double median = sorted_[strong_samples / 2];
+    typical_strength_ = frames_ == 0 ? median : 0.8 * typical_strength_ + 0.2 * median;
+  }
   u_prev2_ = frames_ >= 1 ? u_prev1_ : u_;
   u_prev1_ = u_;
   ++frames_;

@@ -84,6 +84,12 @@ struct TrackerOptions {
   /// Also search along the tangent for the object's end at each free end (a node with no fixed
   /// translation): without it a free beam can slide along itself, which normals cannot see.
   bool observe_ends = true;
+  /// An inlier counts as the object only if its response reaches this fraction of the object's
+  /// typical response (running median over good frames), [0, 1); below min_inlier_fraction such
+  /// lines the frame is lost (the object left, or is hidden).
+  double min_relative_strength = 0.4;
+  /// ... and lies within this distance of the fitted model, pixels, > 0.
+  double object_residual_px = 1.5;
   /// Predict from the last two frames (constant velocity); otherwise start from the last frame.
   bool predict = true;
   /// Verify the recovered per-node forces by a forward static solve (seed 000 §4).
@@ -117,6 +123,7 @@ struct FrameSummary {
   int search_lines = 0;          ///< search lines inside the image
   double rms_px = 0.0;           ///< RMS image residual of the inliers at the end, pixels
   double inlier_fraction = 0.0;  ///< search lines with an inlier observation / all search lines
+  double object_fraction = 0.0;  ///< inliers with an object-like response / all search lines
   bool verified = false;         ///< a verification solve ran and converged
   double verify_px = 0.0;        ///< largest node distance between the verification and the fit
   bool loads_fitted = false;     ///< the load-node fit ran and converged
@@ -208,7 +215,10 @@ class Tracker {
   std::vector<SearchLine> lines_;
   std::vector<Candidate> candidates_;  // lines_.size() x max_candidates
   std::vector<float> residual_;        // per line, NaN when it has no candidate
-  std::vector<float> sorted_;          // scratch for the median
+  std::vector<float> strength_;        // response of the candidate each line uses
+  double typical_strength_ = 0.0;      // running median response of the object's inliers
+  bool previous_lost_ = false;
+  std::vector<float> sorted_;  // scratch for the median
   std::vector<float> scratch_;
   std::vector<common::Vector6d> jacobian_rows_;  // ∂d/∂u_e per line
   Eigen::Matrix2Xd node_tangents_;               // unit reference tangent per node

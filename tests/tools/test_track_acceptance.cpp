@@ -137,3 +137,33 @@ TEST(TrackAcceptance, FreeCurvedBeamUnequalElementsDarkLineMode) {
 }
 
 }  // namespace
+
+namespace {
+
+// The object disappears for 5 frames (sinew-synth --vanish): those frames are reported lost (not
+// fitted onto clutter), and tracking is back within 2 frames of its return.
+TEST(TrackAcceptance, ReacquiresAfterTheObjectVanishes) {
+  const auto frames = synth_and_track(
+      "vanish",
+      "--scenario cantilever --thickness thick --frames 40 --lambda-max 3 --noise 8 "
+      "--clutter 12 --vanish 15:5");
+  ASSERT_EQ(frames.size(), 40u);
+  int back = -1;
+  for (const auto& f : frames) {
+    const int k = f.result["frame"].get<int>();
+    SCOPED_TRACE("frame " + std::to_string(k));
+    if (!f.truth["visible"].get<bool>()) {
+      EXPECT_EQ(f.result["status"], "lost");
+    } else if (k < 15) {
+      EXPECT_EQ(f.result["status"], "ok");
+      EXPECT_LE(f.result["error_px"].get<double>(), 0.3);
+    } else if (back < 0 && f.result["status"] == "ok" && f.result["error_px"].get<double>() < 0.3) {
+      back = k;
+    }
+  }
+  std::cout << "object back on frame 20, tracked again from frame " << back << "\n";
+  EXPECT_GE(back, 20);
+  EXPECT_LE(back, 22);
+}
+
+}  // namespace

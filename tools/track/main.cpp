@@ -69,16 +69,19 @@ TrackInit read_init(const std::string& path) {
   if (root.has("options")) {
     const tools::JsonCursor o = root.at("options");
     auto& t = init.options;
-    const std::map<std::string, double*> reals = {{"min_strength", &t.min_strength},
-                                                  {"image_stiffness", &t.image_stiffness},
-                                                  {"bending_memory", &t.bending_memory},
-                                                  {"research_px", &t.research_px},
-                                                  {"convergence_px", &t.convergence_px},
-                                                  {"tukey_c", &t.tukey_c},
-                                                  {"min_sigma_px", &t.min_sigma_px},
-                                                  {"min_inlier_fraction", &t.min_inlier_fraction},
-                                                  {"snake_stretch_weight", &t.snake_stretch_weight},
-                                                  {"snake_bend_weight", &t.snake_bend_weight}};
+    const std::map<std::string, double*> reals = {
+        {"min_strength", &t.min_strength},
+        {"image_stiffness", &t.image_stiffness},
+        {"bending_memory", &t.bending_memory},
+        {"research_px", &t.research_px},
+        {"min_relative_strength", &t.min_relative_strength},
+        {"object_residual_px", &t.object_residual_px},
+        {"convergence_px", &t.convergence_px},
+        {"tukey_c", &t.tukey_c},
+        {"min_sigma_px", &t.min_sigma_px},
+        {"min_inlier_fraction", &t.min_inlier_fraction},
+        {"snake_stretch_weight", &t.snake_stretch_weight},
+        {"snake_bend_weight", &t.snake_bend_weight}};
     const std::map<std::string, int*> integers = {
         {"samples_per_element", &t.samples_per_element},
         {"search_range_px", &t.search_range_px},
@@ -320,6 +323,7 @@ int run(const Args& args) {
     line["iterations"] = s.iterations;
     line["repetitions"] = s.repetitions;
     line["inlier_fraction"] = s.inlier_fraction;
+    line["object_fraction"] = s.object_fraction;
     line["latency_us"] = s.seconds * 1e6;
     if (!init.load_nodes.empty()) {
       line["load_fit_rms_px"] = s.load_fit_rms_px;
