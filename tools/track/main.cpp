@@ -16,7 +16,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <optional>
 
+#include "rt/stabilisation.hpp"
 #include "rt/tracker.hpp"
 #include "tools/io/beam_json.hpp"
 #include "tools/track/frame_source.hpp"
@@ -235,6 +237,7 @@ struct Args {
   bool quiet = false;
   bool compare_snake = false;
   bool verbose = false;
+  bool stabilise = false;
 };
 
 // RMS distance (pixels) between a tracker's nodes and the truth nodes.
@@ -275,7 +278,10 @@ int run(const Args& args) {
                                    args.overlay.substr(args.overlay.size() - 4) == ".avi"));
   if (!args.overlay.empty() && !overlay_video) std::filesystem::create_directories(args.overlay);
 
-  std::vector<double> latencies, errors, load_errors;
+  std::vector<double> latencies, errors, load_errors, stabilise_ms;
+  std::optional<rt::Stabiliser> stabiliser;
+  cv::Mat stabilised;
+  Eigen::Matrix2Xd polyline(2, n);
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
   int index = 0, processed = 0;
@@ -291,6 +297,18 @@ int run(const Args& args) {
                                   "x" + std::to_string(grey.rows) + ")");
         }
       }
+    }
+    nlohmann::json homography;
+    if (args.stabilise) {
+      // Every frame is resampled into the first processed frame's coordinates (seed 000 §5.2).
+      if (!stabiliser) stabiliser.emplace(grey);
+      for (int i = 0; i < n; ++i) polyline.col(i) = tracker.node_position(i);
+      const rt::StabiliserSummary st = stabiliser->stabilise(grey, polyline, stabilised);
+      stabilise_ms.push_back(st.seconds * 1e3);
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) homography.push_back(st.homography(r, c));
+      }
+      grey = stabilised;
     }
     const rt::ImageView view{grey.ptr<std::uint8_t>(), grey.cols, grey.rows,
                              static_cast<std::ptrdiff_t>(grey.step[0])};
@@ -325,6 +343,10 @@ int run(const Args& args) {
     line["inlier_fraction"] = s.inlier_fraction;
     line["object_fraction"] = s.object_fraction;
     line["latency_us"] = s.seconds * 1e6;
+    if (args.stabilise) {
+      line["homography"] = homography;  // reference-frame pixels → this frame's pixels
+      line["stabilise_ms"] = stabilise_ms.back();
+    }
     if (!init.load_nodes.empty()) {
       line["load_fit_rms_px"] = s.load_fit_rms_px;
       line["loads_fitted"] = s.loads_fitted;
@@ -417,6 +439,11 @@ int run(const Args& args) {
     for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
     std::cout << "\n  latency per frame: median " << percentile(latencies, 0.5) << " us, p99 "
               << percentile(latencies, 0.99) << " us\n";
+    if (!stabilise_ms.empty()) {
+      std::cout << "  stabilisation (ECC homography + warp, outside the tracker): median "
+                << percentile(stabilise_ms, 0.5) << " ms, p99 " << percentile(stabilise_ms, 0.99)
+                << " ms\n";
+    }
     if (!errors.empty()) {
       double mean = 0.0;
       for (double e : errors) mean += e;
@@ -467,6 +494,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"beam", "snake"}));
   app.add_option("--truth", args.truth, "truth.jsonl from sinew-synth: report errors against it");
   app.add_flag("--quiet", args.quiet, "print nothing but errors");
+  app.add_flag("--stabilise", args.stabilise,
+               "moving camera: map every frame into the first frame's coordinates (homography)");
   app.add_flag("--verbose", args.verbose, "print one line per frame (errors against --truth)");
   app.add_flag("--compare-snake", args.compare_snake,
                "also run the snake baseline on the same frames and report both");
