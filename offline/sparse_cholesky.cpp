@@ -1,0 +1,306 @@
+#include "offline/sparse_cholesky.hpp"
+
+#include <cholmod.h>
+
+#include <algorithm>
+#include <chrono>
+#include <utility>
+
+namespace sinew::offline {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+const char* cholmod_ordering_name(int ordering) {
+  switch (ordering) {
+    case CHOLMOD_NATURAL:
+      return "natural";
+    case CHOLMOD_GIVEN:
+      return "given";
+    case CHOLMOD_AMD:
+      return "amd";
+    case CHOLMOD_METIS:
+      return "metis";
+    case CHOLMOD_NESDIS:
+      return "nesdis";
+    case CHOLMOD_COLAMD:
+      return "colamd";
+    case CHOLMOD_POSTORDERED:
+      return "postordered";
+  }
+  return "unknown";
+}
+
+}  // namespace
+
+const char* to_string(SparseCholeskyOrdering ordering) {
+  switch (ordering) {
+    case SparseCholeskyOrdering::kMetis:
+      return "metis";
+    case SparseCholeskyOrdering::kAmd:
+      return "amd";
+    case SparseCholeskyOrdering::kCholmod:
+      return "cholmod-default";
+  }
+  return "unknown";
+}
+
+const char* to_string(SparseCholeskyStatus status) {
+  switch (status) {
+    case SparseCholeskyStatus::kOk:
+      return "ok";
+    case SparseCholeskyStatus::kNotAnalysed:
+      return "not analysed";
+    case SparseCholeskyStatus::kNotFactorised:
+      return "not factorised";
+    case SparseCholeskyStatus::kInvalidInput:
+      return "invalid input";
+    case SparseCholeskyStatus::kPatternMismatch:
+      return "pattern differs from the analysed one";
+    case SparseCholeskyStatus::kNotPositiveDefinite:
+      return "not positive definite";
+    case SparseCholeskyStatus::kOutOfMemory:
+      return "out of memory";
+    case SparseCholeskyStatus::kCholmodError:
+      return "CHOLMOD error";
+  }
+  return "unknown";
+}
+
+struct SparseCholesky::Impl {
+  SparseCholeskyOptions options;
+  cholmod_common common;
+  cholmod_factor* factor = nullptr;
+  // Solve workspaces, kept between calls (cholmod_solve2 reallocates only when k changes).
+  cholmod_dense* x = nullptr;
+  cholmod_dense* y = nullptr;
+  cholmod_dense* e = nullptr;
+  bool factorised = false;
+  Eigen::Index n = 0;
+  // The analysed pattern (compressed form), to check factorise() input.
+  std::vector<int> outer;
+  std::vector<int> inner;
+  std::optional<Eigen::Index> minor_index;
+  std::optional<Eigen::Index> failed_column;
+  double analysis_seconds = 0.0;
+  double factorisation_seconds = 0.0;
+  double total_factorisation_seconds = 0.0;
+  int num_factorisations = 0;
+
+  explicit Impl(const SparseCholeskyOptions& o) : options(o) {
+    cholmod_start(&common);
+    common.print = 0;  // never print; failures are returned as statuses
+    common.error_handler = nullptr;
+    common.supernodal = CHOLMOD_SUPERNODAL;
+    common.final_ll = 1;  // keep the LLᵀ form (no conversion to LDLᵀ after factorising)
+    switch (options.ordering) {
+      case SparseCholeskyOrdering::kMetis:
+        common.nmethods = 1;
+        common.method[0].ordering = CHOLMOD_METIS;
+        common.postorder = 1;
+        break;
+      case SparseCholeskyOrdering::kAmd:
+        common.nmethods = 1;
+        common.method[0].ordering = CHOLMOD_AMD;
+        common.postorder = 1;
+        break;
+      case SparseCholeskyOrdering::kCholmod:
+        break;  // nmethods = 0: AMD, then METIS when AMD's fill is poor
+    }
+  }
+
+  ~Impl() {
+    free_factor();
+    if (x != nullptr) cholmod_free_dense(&x, &common);
+    if (y != nullptr) cholmod_free_dense(&y, &common);
+    if (e != nullptr) cholmod_free_dense(&e, &common);
+    cholmod_finish(&common);
+  }
+
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  void free_factor() {
+    if (factor != nullptr) cholmod_free_factor(&factor, &common);
+    factor = nullptr;
+    factorised = false;
+  }
+
+  SparseCholeskyStatus status_from_common() const {
+    if (common.status == CHOLMOD_OUT_OF_MEMORY) return SparseCholeskyStatus::kOutOfMemory;
+    if (common.status == CHOLMOD_NOT_POSDEF) return SparseCholeskyStatus::kNotPositiveDefinite;
+    if (common.status < CHOLMOD_OK) return SparseCholeskyStatus::kCholmodError;
+    return SparseCholeskyStatus::kOk;
+  }
+
+  // A read-only CHOLMOD view of A's upper triangle (stype = 1: entries below the diagonal are
+  // ignored). CHOLMOD does not modify A in analyse/factorise.
+  static cholmod_sparse view(const Eigen::SparseMatrix<double>& A) {
+    cholmod_sparse s{};
+    s.nrow = static_cast<size_t>(A.rows());
+    s.ncol = static_cast<size_t>(A.cols());
+    s.nzmax = static_cast<size_t>(A.nonZeros());
+    s.p = const_cast<int*>(A.outerIndexPtr());
+    s.i = const_cast<int*>(A.innerIndexPtr());
+    s.nz = A.isCompressed() ? nullptr : const_cast<int*>(A.innerNonZeroPtr());
+    s.x = const_cast<double*>(A.valuePtr());
+    s.z = nullptr;
+    s.stype = 1;
+    s.itype = CHOLMOD_INT;
+    s.xtype = CHOLMOD_REAL;
+    s.dtype = CHOLMOD_DOUBLE;
+    s.sorted = 1;  // Eigen keeps inner indices sorted in each column
+    s.packed = A.isCompressed() ? 1 : 0;
+    return s;
+  }
+
+  bool same_pattern(const Eigen::SparseMatrix<double>& A) const {
+    if (A.rows() != n || A.cols() != n || !A.isCompressed()) return false;
+    if (static_cast<std::size_t>(A.nonZeros()) != inner.size()) return false;
+    return std::equal(outer.begin(), outer.end(), A.outerIndexPtr()) &&
+           std::equal(inner.begin(), inner.end(), A.innerIndexPtr());
+  }
+};
+
+SparseCholesky::SparseCholesky(const SparseCholeskyOptions& options)
+    : impl_(std::make_unique<Impl>(options)) {}
+SparseCholesky::~SparseCholesky() = default;
+SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
+SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
+
+SparseCholeskyStatus SparseCholesky::analyse(const Eigen::SparseMatrix<double>& A) {
+  Impl& d = *impl_;
+  d.free_factor();
+  d.n = 0;
+  d.outer.clear();
+  d.inner.clear();
+  d.minor_index.reset();
+  d.failed_column.reset();
+  if (A.rows() != A.cols() || A.rows() == 0) return SparseCholeskyStatus::kInvalidInput;
+  // The pattern check of factorise() compares compressed arrays; require compressed input.
+  if (!A.isCompressed()) return SparseCholeskyStatus::kInvalidInput;
+
+  const auto start = Clock::now();
+  cholmod_sparse a = Impl::view(A);
+  d.factor = cholmod_analyze(&a, &d.common);
+  d.analysis_seconds = seconds_since(start);
+  if (d.factor == nullptr) {
+    const SparseCholeskyStatus s = d.status_from_common();
+    return s == SparseCholeskyStatus::kOk ? SparseCholeskyStatus::kCholmodError : s;
+  }
+  d.n = A.rows();
+  d.outer.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.cols() + 1);
+  d.inner.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
+  return SparseCholeskyStatus::kOk;
+}
+
+SparseCholeskyStatus SparseCholesky::factorise(const Eigen::SparseMatrix<double>& A) {
+  Impl& d = *impl_;
+  if (d.factor == nullptr) return SparseCholeskyStatus::kNotAnalysed;
+  if (!d.same_pattern(A)) return SparseCholeskyStatus::kPatternMismatch;
+  d.factorised = false;
+  d.minor_index.reset();
+  d.failed_column.reset();
+
+  const auto start = Clock::now();
+  cholmod_sparse a = Impl::view(A);
+  const int ok = cholmod_factorize(&a, d.factor, &d.common);
+  d.factorisation_seconds = seconds_since(start);
+  d.total_factorisation_seconds += d.factorisation_seconds;
+  ++d.num_factorisations;
+
+  const SparseCholeskyStatus status = ok ? d.status_from_common()
+                                         : (d.status_from_common() == SparseCholeskyStatus::kOk
+                                                ? SparseCholeskyStatus::kCholmodError
+                                                : d.status_from_common());
+  if (status == SparseCholeskyStatus::kNotPositiveDefinite ||
+      (status == SparseCholeskyStatus::kOk && d.factor->minor < d.factor->n)) {
+    const auto m = static_cast<Eigen::Index>(d.factor->minor);
+    d.minor_index = m;
+    if (d.factor->Perm != nullptr && m < d.n) {
+      d.failed_column = static_cast<const int*>(d.factor->Perm)[m];
+    } else {
+      d.failed_column = m;
+    }
+    return SparseCholeskyStatus::kNotPositiveDefinite;
+  }
+  if (status != SparseCholeskyStatus::kOk) return status;
+  d.factorised = true;
+  return SparseCholeskyStatus::kOk;
+}
+
+SparseCholeskyStatus SparseCholesky::compute(const Eigen::SparseMatrix<double>& A) {
+  const SparseCholeskyStatus s = analyse(A);
+  return s == SparseCholeskyStatus::kOk ? factorise(A) : s;
+}
+
+SparseCholeskyStatus SparseCholesky::solve(const Eigen::Ref<const Eigen::MatrixXd>& rhs,
+                                           Eigen::Ref<Eigen::MatrixXd> solution) {
+  Impl& d = *impl_;
+  if (d.factor == nullptr) return SparseCholeskyStatus::kNotAnalysed;
+  if (!d.factorised) return SparseCholeskyStatus::kNotFactorised;
+  if (rhs.rows() != d.n || solution.rows() != d.n || solution.cols() != rhs.cols() ||
+      rhs.cols() == 0) {
+    return SparseCholeskyStatus::kInvalidInput;
+  }
+  cholmod_dense b{};
+  b.nrow = static_cast<size_t>(rhs.rows());
+  b.ncol = static_cast<size_t>(rhs.cols());
+  b.d = static_cast<size_t>(rhs.outerStride());
+  b.nzmax = b.d * b.ncol;
+  b.x = const_cast<double*>(rhs.data());  // read only
+  b.z = nullptr;
+  b.xtype = CHOLMOD_REAL;
+  b.dtype = CHOLMOD_DOUBLE;
+  if (!cholmod_solve2(CHOLMOD_A, d.factor, &b, nullptr, &d.x, nullptr, &d.y, &d.e, &d.common)) {
+    const SparseCholeskyStatus s = d.status_from_common();
+    return s == SparseCholeskyStatus::kOk ? SparseCholeskyStatus::kCholmodError : s;
+  }
+  const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> x(
+      static_cast<const double*>(d.x->x), rhs.rows(), rhs.cols(),
+      Eigen::OuterStride<>(static_cast<Eigen::Index>(d.x->d)));
+  solution = x;
+  return SparseCholeskyStatus::kOk;
+}
+
+bool SparseCholesky::analysed() const {
+  return impl_->factor != nullptr;
+}
+bool SparseCholesky::factorised() const {
+  return impl_->factorised;
+}
+Eigen::Index SparseCholesky::rows() const {
+  return impl_->n;
+}
+std::optional<double> SparseCholesky::factor_nonzeros() const {
+  if (impl_->factor == nullptr) return std::nullopt;
+  return impl_->common.lnz;
+}
+std::optional<Eigen::Index> SparseCholesky::factor_minor() const {
+  return impl_->minor_index;
+}
+std::optional<Eigen::Index> SparseCholesky::failed_column() const {
+  return impl_->failed_column;
+}
+double SparseCholesky::analysis_seconds() const {
+  return impl_->analysis_seconds;
+}
+double SparseCholesky::factorisation_seconds() const {
+  return impl_->factorisation_seconds;
+}
+double SparseCholesky::total_factorisation_seconds() const {
+  return impl_->total_factorisation_seconds;
+}
+int SparseCholesky::num_factorisations() const {
+  return impl_->num_factorisations;
+}
+std::optional<std::string> SparseCholesky::ordering_used() const {
+  if (impl_->factor == nullptr) return std::nullopt;
+  return std::string(cholmod_ordering_name(impl_->factor->ordering));
+}
+
+}  // namespace sinew::offline
