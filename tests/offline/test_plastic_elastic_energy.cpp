@@ -13,83 +13,16 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
-#include <atomic>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
-#include <new>
 #include <string>
 #include <vector>
 
 #include "common/fem/tet_mesh_elasticity.hpp"
+// The one translation unit of this executable that includes it: malloc and operator new hooks.
+#include "tests/support/allocation_counter.hpp"
 #include "tests/support/finite_difference.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
-
-// Allocation counters (as in tests/rt/test_no_allocation.cpp): malloc family and operator new.
-// AddressSanitizer owns malloc itself, so under it the counters are left out and the test skips.
-#if defined(__SANITIZE_ADDRESS__)
-#define SINEW_COUNT_ALLOCATIONS 0
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define SINEW_COUNT_ALLOCATIONS 0
-#endif
-#endif
-#ifndef SINEW_COUNT_ALLOCATIONS
-#define SINEW_COUNT_ALLOCATIONS 1
-#endif
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-#if SINEW_COUNT_ALLOCATIONS
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void __libc_free(void*);
-}
-
-extern "C" void* malloc(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_allocations;
-  return __libc_malloc(n);
-}
-extern "C" void* calloc(std::size_t n, std::size_t m) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_allocations;
-  return __libc_calloc(n, m);
-}
-extern "C" void* realloc(void* p, std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_allocations;
-  return __libc_realloc(p, n);
-}
-extern "C" void free(void* p) {
-  __libc_free(p);
-}
-
-void* operator new(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_allocations;
-  if (void* p = __libc_malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_allocations;
-  if (void* p = __libc_malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  __libc_free(p);
-}
-void operator delete[](void* p) noexcept {
-  __libc_free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  __libc_free(p);
-}
-void operator delete[](void* p, std::size_t) noexcept {
-  __libc_free(p);
-}
-#endif  // SINEW_COUNT_ALLOCATIONS
 
 namespace {
 
@@ -549,8 +482,8 @@ TEST(PlasticElasticEnergy, FailuresAreStatuses) {
 }
 
 TEST(PlasticElasticEnergy, EvaluateDoesNotAllocate) {
-  if (!SINEW_COUNT_ALLOCATIONS)
-    GTEST_SKIP() << "allocation counters are off under AddressSanitizer";
+  if (!sinew::testing::allocation_counting_available())
+    GTEST_SKIP() << sinew::testing::kAllocationCountingUnavailable;
   auto& gen = sinew::testing::rng();
   const auto mesh = sinew::testing::make_box_mesh(2, 2, 2, 0.25);
   sinew::offline::PlasticElasticEnergyOptions options;
@@ -565,14 +498,13 @@ TEST(PlasticElasticEnergy, EvaluateDoesNotAllocate) {
   const double* K_values = energy.stiffness().valuePtr();
   const double* J_values = energy.force_jacobian().valuePtr();
   long failures = 0;
-  g_allocations = 0;
-  g_counting = true;
+  sinew::testing::AllocationCounter counter;
   for (int i = 0; i < 20; ++i) {
     if (!energy.evaluate(state.s, state.x, all).valid()) ++failures;
     if (energy.evaluate(singular, state.x, all).valid()) ++failures;  // failure path
   }
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  counter.stop();
+  EXPECT_EQ(counter.total(), 0);
   EXPECT_EQ(failures, 0);
   EXPECT_EQ(energy.stiffness().valuePtr(), K_values);
   EXPECT_EQ(energy.force_jacobian().valuePtr(), J_values);

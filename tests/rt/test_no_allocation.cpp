@@ -8,65 +8,13 @@
 // test compiles the tracker's sources itself with that macro and with assertions on).
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cstdlib>
-#include <new>
 
 #include "common/beam/static_solver.hpp"
 #include "rt/tracker.hpp"
+// The one translation unit of this executable that includes it: malloc and operator new hooks.
+#include "tests/support/allocation_counter.hpp"
 #include "tests/support/beam_render.hpp"
-
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void __libc_free(void*);
-}
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_mallocs{0};
-std::atomic<long> g_news{0};
-}  // namespace
-
-extern "C" void* malloc(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_mallocs;
-  return __libc_malloc(n);
-}
-extern "C" void* calloc(std::size_t n, std::size_t m) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_mallocs;
-  return __libc_calloc(n, m);
-}
-extern "C" void* realloc(void* p, std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_mallocs;
-  return __libc_realloc(p, n);
-}
-extern "C" void free(void* p) {
-  __libc_free(p);
-}
-
-void* operator new(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_news;
-  if (void* p = __libc_malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_news;
-  if (void* p = __libc_malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  __libc_free(p);
-}
-void operator delete[](void* p) noexcept {
-  __libc_free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  __libc_free(p);
-}
-void operator delete[](void* p, std::size_t) noexcept {
-  __libc_free(p);
-}
 
 namespace sinew::rt {
 namespace {
@@ -133,10 +81,8 @@ struct Counts {
 Counts run(Tracker& tracker, const Frames& frames, int count) {
   Counts c;
   tracker.track(frames.bent[0].view());  // the first frame may warm up lazily (none does today)
-  g_mallocs = 0;
-  g_news = 0;
   Eigen::internal::set_is_malloc_allowed(false);
-  g_counting = true;
+  sinew::testing::AllocationCounter counter;
   for (int k = 1; k < count; ++k) {
     const FrameSummary s = tracker.track(frame(frames, k).view());
     c.ok += s.status == FrameStatus::kOk;
@@ -145,14 +91,16 @@ Counts run(Tracker& tracker, const Frames& frames, int count) {
     c.verified += s.verified;
     c.fitted += s.loads_fitted;
   }
-  g_counting = false;
+  counter.stop();
   Eigen::internal::set_is_malloc_allowed(true);
-  c.mallocs = g_mallocs;
-  c.news = g_news;
+  c.mallocs = counter.mallocs();
+  c.news = counter.news();
   return c;
 }
 
 TEST(NoAllocation, BeamTrackerWithVerificationAndLoadFit) {
+  if (!sinew::testing::allocation_counting_available())
+    GTEST_SKIP() << sinew::testing::kAllocationCountingUnavailable;
   const Frames frames = render(12);
   TrackerOptions options;
   options.observation = ObservationMode::kEdge;
@@ -173,6 +121,8 @@ TEST(NoAllocation, BeamTrackerWithVerificationAndLoadFit) {
 }
 
 TEST(NoAllocation, NonConvergingFramesAndSnake) {
+  if (!sinew::testing::allocation_counting_available())
+    GTEST_SKIP() << sinew::testing::kAllocationCountingUnavailable;
   const Frames frames = render(12);
   TrackerOptions options;
   options.observation = ObservationMode::kEdge;
@@ -200,16 +150,16 @@ TEST(NoAllocation, NonConvergingFramesAndSnake) {
 
 TEST(NoAllocation, CountersSeeAllocations) {
   // The guard itself must be able to fail.
-  g_mallocs = 0;
-  g_news = 0;
-  g_counting = true;
+  if (!sinew::testing::allocation_counting_available())
+    GTEST_SKIP() << sinew::testing::kAllocationCountingUnavailable;
+  sinew::testing::AllocationCounter counter;
   void* p = std::malloc(64);
   int* q = new int(3);
-  g_counting = false;
+  counter.stop();
   std::free(p);
   delete q;
-  EXPECT_EQ(g_mallocs, 1);
-  EXPECT_EQ(g_news, 1);
+  EXPECT_EQ(counter.mallocs(), 1);
+  EXPECT_EQ(counter.news(), 1);
 }
 
 }  // namespace

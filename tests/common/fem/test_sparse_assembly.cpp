@@ -6,51 +6,13 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
-#include <atomic>
 #include <cstdlib>
-#include <new>
 
+// The one translation unit of this executable that includes it: it defines malloc and operator
+// new hooks, to prove that assemble() does not allocate.
+#include "tests/support/allocation_counter.hpp"
 #include "tests/support/finite_difference.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
-
-// Allocation counters for this test executable: global operator new and malloc (glibc) while
-// counting is switched on, to prove that assemble() does not allocate. Eigen allocates with
-// std::malloc, which operator-new hooks alone would not see. Sanitizers interpose malloc
-// themselves, so under them the hooks are left out and the allocation test is skipped.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
-    __has_feature(memory_sanitizer)
-#define SINEW_TEST_UNDER_SANITIZER 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define SINEW_TEST_UNDER_SANITIZER 1
-#endif
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-#if !defined(SINEW_TEST_UNDER_SANITIZER) && defined(__GLIBC__)
-#define SINEW_TEST_COUNTS_ALLOCATIONS 1
-extern "C" void* __libc_malloc(std::size_t size) noexcept;
-extern "C" void* malloc(std::size_t size) noexcept {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  return __libc_malloc(size);
-}
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = __libc_malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-#endif
 
 namespace {
 
@@ -58,15 +20,7 @@ using sinew::common::AssemblyStatus;
 using sinew::common::PatternStorage;
 using sinew::common::SparseAssembly;
 
-class AllocationCounter {
- public:
-  AllocationCounter() {
-    g_allocations = 0;
-    g_counting = true;
-  }
-  ~AllocationCounter() { g_counting = false; }
-  long count() const { return g_allocations.load(); }
-};
+using sinew::testing::AllocationCounter;
 
 // Random element matrices, stacked side by side: (3k) by (3k·#E). Non-symmetric unless asked, so
 // a transposed scatter would be caught; upper-triangle storage needs symmetric ones.
@@ -147,14 +101,12 @@ TEST(SparseAssembly, SecondAssembleReusesPatternWithoutAllocating) {
       const sinew::common::Matrix12d fixed = Ke.middleCols<12>(12 * t);
       assembly.add_element_matrix(t, fixed);  // fixed-size input binds without a copy
     }
-    allocations = counter.count();
+    allocations = counter.total();
   }
   for (const AssemblyStatus status : statuses) EXPECT_EQ(status, AssemblyStatus::kOk);
-#ifdef SINEW_TEST_COUNTS_ALLOCATIONS
-  EXPECT_EQ(allocations, 0);
-#else
-  (void)allocations;
-#endif
+  if (sinew::testing::allocation_counting_available()) {
+    EXPECT_EQ(allocations, 0);
+  }
   EXPECT_EQ(K.nonZeros(), nnz);
   EXPECT_EQ(K.valuePtr(), values);
   EXPECT_EQ(K.innerIndexPtr(), inner);
@@ -165,16 +117,15 @@ TEST(SparseAssembly, SecondAssembleReusesPatternWithoutAllocating) {
 
 TEST(SparseAssembly, AllocationCounterSeesAllocations) {
   // Guard for the test above: the counter is not blind.
-#ifndef SINEW_TEST_COUNTS_ALLOCATIONS
-  GTEST_SKIP() << "allocation hooks are disabled under sanitizers / without glibc";
-#endif
+  if (!sinew::testing::allocation_counting_available())
+    GTEST_SKIP() << sinew::testing::kAllocationCountingUnavailable;
   long allocations = 0;
   {
     AllocationCounter counter;
     Eigen::VectorXd v(1000);
     double* volatile escaped = v.data();  // keeps the allocation from being optimised away
     (void)escaped;
-    allocations = counter.count();
+    allocations = counter.total();
   }
   EXPECT_GT(allocations, 0);
   // And it sees plain malloc, which Eigen uses, not only operator new.
@@ -182,7 +133,7 @@ TEST(SparseAssembly, AllocationCounterSeesAllocations) {
     AllocationCounter counter;
     void* volatile p = std::malloc(64);
     std::free(p);
-    allocations = counter.count();
+    allocations = counter.total();
   }
   EXPECT_EQ(allocations, 1);
 }
