@@ -8,27 +8,50 @@ namespace sinew::rt {
 int search_profile(const ImageView& image, const Eigen::Vector2d& centre,
                    const Eigen::Vector2d& normal, const ProfileSearch& search, float* scratch,
                    Candidate* out) {
-  const int margin = search.line_surround_px + 2;
+  // Responses at ±range need their neighbours: the central difference reads ±1 more for edges,
+  // the centre-surround ±(surround + 1) for lines.
+  const int margin = search.mode == ObservationMode::kEdge ? 2 : search.line_surround_px + 2;
   const int half = search.range_px + margin;
   const int count = 2 * half + 1;
   float* profile = scratch;
   float* response = scratch + count;
   const float missing = std::numeric_limits<float>::quiet_NaN();
   const Eigen::Vector2d tangent(normal.y(), -normal.x());
+  const int band = search.band_px;
 
-  // Intensity profile, averaged across the band along the tangent (noise ÷ √(2·band + 1)).
+  // Intensity profile, averaged across the band along the tangent (noise ÷ √(2·band + 1)). When the
+  // whole sampled parallelogram lies inside the image (its corners do), samples skip the bounds
+  // checks; otherwise each is checked and a profile point with a sample outside is missing.
+  const Eigen::Vector2d reach = half * normal.cwiseAbs() + band * tangent.cwiseAbs();
+  const bool inside = centre.x() - reach.x() >= 0.0 && centre.y() - reach.y() >= 0.0 &&
+                      centre.x() + reach.x() < image.width - 1.0 &&
+                      centre.y() + reach.y() < image.height - 1.0;
+  const float inv = 1.0f / float(2 * band + 1);
   for (int k = 0; k < count; ++k) {
     const Eigen::Vector2d p = centre + double(k - half) * normal;
     float sum = 0.0f;
+    if (inside) {
+      for (int b = -band; b <= band; ++b) {
+        const double x = p.x() + b * tangent.x(), y = p.y() + b * tangent.y();
+        const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+        const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+        const std::uint8_t* q = image.data + y0 * image.stride + x0;
+        const float top = q[0] + fx * (q[1] - q[0]);
+        const float bottom = q[image.stride] + fx * (q[image.stride + 1] - q[image.stride]);
+        sum += top + fy * (bottom - top);
+      }
+      profile[k] = sum * inv;
+      continue;
+    }
     int n = 0;
-    for (int b = -search.band_px; b <= search.band_px; ++b) {
+    for (int b = -band; b <= band; ++b) {
       float v;
       if (image.sample(p.x() + b * tangent.x(), p.y() + b * tangent.y(), &v)) {
         sum += v;
         ++n;
       }
     }
-    profile[k] = n == 2 * search.band_px + 1 ? sum / n : missing;
+    profile[k] = n == 2 * band + 1 ? sum * inv : missing;
   }
 
   // Response at each offset: signed central difference for edges, centre-surround for lines.
