@@ -108,8 +108,23 @@ TEST(TrackAcceptance, ThickCantileverEdgeMode) {
   const auto frames = synth_and_track(
       "thick",
       "--scenario cantilever --thickness thick --frames 40 --lambda-max 5 --noise 8 "
-      "--clutter 12 --occluder 12:15");
+      "--clutter 12 --occluder 12:15",
+      "--compare-snake --forces-since 10");
   check_cantilever(frames, 0.05, 0, 0);
+  // Loads between two chosen frames (frame 10 → each later frame) against the truth's difference.
+  const auto& last = frames.back();
+  const auto& first = frames[10];
+  const int tip = static_cast<int>(last.truth["loads"].size()) - 1;
+  const double tx =
+      last.truth["loads"][tip][0].get<double>() - first.truth["loads"][tip][0].get<double>();
+  const double ty =
+      last.truth["loads"][tip][1].get<double>() - first.truth["loads"][tip][1].get<double>();
+  const auto& fs = last.result["forces_since"][tip];
+  const double err = std::hypot(fs[0].get<double>() - tx, fs[1].get<double>() - ty);
+  std::cout << "tip load from frame 10 to 39: " << fs[1].get<double>() << " (truth " << ty
+            << "), error " << 100 * err / std::hypot(tx, ty) << " %\n";
+  EXPECT_LT(err, 0.05 * std::hypot(tx, ty));
+  EXPECT_EQ(first.result["forces_since"][tip][1].get<double>(), 0.0);
 }
 
 TEST(TrackAcceptance, ThinCantileverDarkLineMode) {

@@ -238,6 +238,7 @@ struct Args {
   bool compare_snake = false;
   bool verbose = false;
   bool stabilise = false;
+  int forces_since = -1;  // frame index, or −1
 };
 
 // RMS distance (pixels) between a tracker's nodes and the truth nodes.
@@ -279,6 +280,7 @@ int run(const Args& args) {
   if (!args.overlay.empty() && !overlay_video) std::filesystem::create_directories(args.overlay);
 
   std::vector<double> latencies, errors, load_errors, stabilise_ms;
+  Eigen::VectorXd forces_at_since;  // the reported forces on frame --forces-since
   std::optional<rt::Stabiliser> stabiliser;
   cv::Mat stabilised;
   Eigen::Matrix2Xd polyline(2, n);
@@ -336,6 +338,16 @@ int run(const Args& args) {
                                : tracker.fitted_loads(),
                            n);
     if (!init.load_nodes.empty()) line["node_forces"] = rows3(tracker.forces(), n);
+    if (args.forces_since >= 0 && index >= args.forces_since) {
+      // Loads between two chosen frames (seed 000 §4): both are measured from the first frame's
+      // shape, so the load that takes the beam from frame A's shape to this one is their
+      // difference.
+      const Eigen::VectorXd& now =
+          init.load_nodes.empty() ? tracker.forces() : tracker.fitted_loads();
+      if (forces_at_since.size() == 0) forces_at_since = now;
+      line["forces_since"] = rows3(now - forces_at_since, n);
+      line["forces_since_frame"] = args.forces_since;
+    }
     line["rms_px"] = s.rms_px;
     line["verify_px"] = s.verified ? nlohmann::json(s.verify_px) : nlohmann::json(nullptr);
     line["iterations"] = s.iterations;
@@ -494,6 +506,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"beam", "snake"}));
   app.add_option("--truth", args.truth, "truth.jsonl from sinew-synth: report errors against it");
   app.add_flag("--quiet", args.quiet, "print nothing but errors");
+  app.add_option("--forces-since", args.forces_since,
+                 "also report the loads between frame N and each later frame (forces_since)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--stabilise", args.stabilise,
                "moving camera: map every frame into the first frame's coordinates (homography)");
   app.add_flag("--verbose", args.verbose, "print one line per frame (errors against --truth)");
