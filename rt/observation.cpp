@@ -27,31 +27,39 @@ int search_profile(const ImageView& image, const Eigen::Vector2d& centre,
                       centre.x() + reach.x() < image.width - 1.0 &&
                       centre.y() + reach.y() < image.height - 1.0;
   const float inv = 1.0f / float(2 * band + 1);
-  for (int k = 0; k < count; ++k) {
-    const Eigen::Vector2d p = centre + double(k - half) * normal;
-    float sum = 0.0f;
-    if (inside) {
-      for (int b = -band; b <= band; ++b) {
-        const double x = p.x() + b * tangent.x(), y = p.y() + b * tangent.y();
-        const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-        const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-        const std::uint8_t* q = image.data + y0 * image.stride + x0;
-        const float top = q[0] + fx * (q[1] - q[0]);
-        const float bottom = q[image.stride] + fx * (q[image.stride + 1] - q[image.stride]);
-        sum += top + fy * (bottom - top);
-      }
-      profile[k] = sum * inv;
-      continue;
-    }
-    int n = 0;
+  if (inside) {
+    // Fast path: all samples inside, walk each band row along the normal in float.
+    for (int k = 0; k < count; ++k) profile[k] = 0.0f;
+    const float nx = static_cast<float>(normal.x()), ny = static_cast<float>(normal.y());
+    const std::ptrdiff_t stride = image.stride;
     for (int b = -band; b <= band; ++b) {
-      float v;
-      if (image.sample(p.x() + b * tangent.x(), p.y() + b * tangent.y(), &v)) {
-        sum += v;
-        ++n;
+      const float x0 = static_cast<float>(centre.x() + b * tangent.x() - half * normal.x());
+      const float y0 = static_cast<float>(centre.y() + b * tangent.y() - half * normal.y());
+      for (int k = 0; k < count; ++k) {
+        const float x = x0 + k * nx, y = y0 + k * ny;
+        const int xi = static_cast<int>(x), yi = static_cast<int>(y);
+        const float fx = x - xi, fy = y - yi;
+        const std::uint8_t* q = image.data + yi * stride + xi;
+        const float top = q[0] + fx * (q[1] - q[0]);
+        const float bottom = q[stride] + fx * (q[stride + 1] - q[stride]);
+        profile[k] += top + fy * (bottom - top);
       }
     }
-    profile[k] = n == 2 * band + 1 ? sum * inv : missing;
+    for (int k = 0; k < count; ++k) profile[k] *= inv;
+  } else {
+    for (int k = 0; k < count; ++k) {
+      const Eigen::Vector2d p = centre + double(k - half) * normal;
+      float sum = 0.0f;
+      int n = 0;
+      for (int b = -band; b <= band; ++b) {
+        float v;
+        if (image.sample(p.x() + b * tangent.x(), p.y() + b * tangent.y(), &v)) {
+          sum += v;
+          ++n;
+        }
+      }
+      profile[k] = n == 2 * band + 1 ? sum * inv : missing;
+    }
   }
 
   // Response at each offset: signed central difference for edges, centre-surround for lines.

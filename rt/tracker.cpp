@@ -363,6 +363,12 @@ void Tracker::search(const ImageView& frame, int range_px) {
     line.centre = expected_point(line, p, &line.normal);
     ProfileSearch search = profile_search_;
     search.range_px = std::min(range_px, profile_search_.range_px);  // never past the scratch
+    // In edge mode the wide first search only has to bring the model near the object's strong
+    // boundaries: one pixel row is enough (a third of the samples); the band averaging that fixes
+    // the final positions comes after. Thin lines in noise need the band from the start.
+    if (range_px > options_.search_range_px && options_.observation == ObservationMode::kEdge) {
+      search.band_px = 0;
+    }
     if (line.end != 0) {
       // An end: the object gives way to background going outwards along the tangent.
       search.mode = ObservationMode::kEdge;
