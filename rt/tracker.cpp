@@ -192,9 +192,6 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
         "cannot carry loads at a few nodes in equilibrium";
     return;
   }
-  if (options_.model == TrackerModel::kSnake && options_.observation == ObservationMode::kEdge) {
-    // fine: the snake uses the same image term
-  }
 
   sides_ = options_.observation == ObservationMode::kEdge ? 2 : 1;
   profile_search_.mode = options_.observation;
@@ -450,7 +447,7 @@ void Tracker::add_image_term(double cutoff) {
   }
 }
 
-void Tracker::add_snake_term(double* energy) {
+void Tracker::add_snake_term() {
   // E = w_s Σ_e (|d_e| − L₀)² + w_b Σ_i |Δ²x_i − Δ²X_i|² (seed 000 §5.2), positions only.
   const int n = model_.num_nodes();
   const double ws = options_.snake_stretch_weight, wb = options_.snake_bend_weight;
@@ -471,7 +468,6 @@ void Tracker::add_snake_term(double* energy) {
     snake_matrix_.block<2, 2>(3 * e + 3, 3 * e + 3) += H;
     snake_matrix_.block<2, 2>(3 * e, 3 * e + 3) -= H;
     snake_matrix_.block<2, 2>(3 * e + 3, 3 * e) -= H;
-    if (energy) *energy += ws * (len - L0) * (len - L0);
   }
   const double coeff[3] = {1.0, -2.0, 1.0};
   for (int i = 1; i + 1 < n; ++i) {
@@ -485,7 +481,6 @@ void Tracker::add_snake_term(double* energy) {
             2.0 * wb * coeff[a] * coeff[c];
       }
     }
-    if (energy) *energy += wb * b.squaredNorm();
   }
 }
 
@@ -513,7 +508,7 @@ bool Tracker::newton_step() {
   } else {
     snake_matrix_.setZero();
     gradient_.setZero();
-    add_snake_term(nullptr);
+    add_snake_term();
     gradient_ -= p_ref_;
     add_image_term(cutoff);
     snake_matrix_.diagonal().array() += damping_translation_;

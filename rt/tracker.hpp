@@ -190,7 +190,7 @@ class Tracker {
   // Adds the Tukey-weighted image term (Gauss–Newton) to the system and gradient_.
   void add_image_term(double cutoff);
   // Adds the snake energy's gradient and (PSD) Hessian at u_ to gradient_ and snake_matrix_.
-  void add_snake_term(double* energy);
+  void add_snake_term();
   // p_ref_ = the model's elastic force at u_ (start of a repetition).
   void internal_force_at_start();
   bool newton_step();
