@@ -1,0 +1,764 @@
+#include "offline/io/tet_mesh_io.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <new>
+#include <sstream>
+
+namespace sinew::offline {
+namespace {
+
+/// Internal failure carrying the final one-line message; never leaves this file.
+struct ReadError {
+  std::string message;
+};
+
+std::string format_error(const std::string& file, int line, const std::string& what) {
+  return file + ":" + std::to_string(line) + ": " + what;
+}
+
+std::string to_lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string to_upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+/// Shortens a token for quoting in a message.
+std::string quoted(const std::string& token) {
+  std::string s = token.size() > 40 ? token.substr(0, 40) + "..." : token;
+  for (char& c : s) {
+    if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
+  }
+  return "'" + s + "'";
+}
+
+bool parse_double(const std::string& token, double& value) {
+  if (token.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  value = std::strtod(token.c_str(), &end);
+  return end == token.c_str() + token.size();  // overflow gives ±inf, caught as non-finite later
+}
+
+bool parse_integer(const std::string& token, long long& value) {
+  if (token.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  value = std::strtoll(token.c_str(), &end, 10);
+  return end == token.c_str() + token.size() && errno != ERANGE;
+}
+
+struct Line {
+  int number = 0;  ///< 1-based line number in the file
+  std::vector<std::string> tokens;
+};
+
+/// The non-blank lines of a text file, '#' comments stripped, split into whitespace tokens.
+class LineSource {
+ public:
+  LineSource(const std::string& path, bool commas_are_spaces) : path_(path) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec))
+      throw ReadError{path + ": cannot read: is a directory"};
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+      const int e = errno;
+      throw ReadError{path + ": cannot open file" +
+                      (e != 0 ? std::string(" (") + std::strerror(e) + ")" : "")};
+    }
+    std::string text;
+    int number = 0;
+    while (std::getline(in, text)) {
+      ++number;
+      if (const auto hash = text.find('#'); hash != std::string::npos) text.erase(hash);
+      if (commas_are_spaces) std::replace(text.begin(), text.end(), ',', ' ');
+      Line line;
+      line.number = number;
+      std::istringstream words(text);
+      for (std::string w; words >> w;) line.tokens.push_back(w);
+      if (!line.tokens.empty()) lines_.push_back(std::move(line));
+    }
+    if (in.bad()) throw ReadError{path + ": read error after line " + std::to_string(number)};
+    total_lines_ = number;
+  }
+
+  bool at_end() const { return next_ >= lines_.size(); }
+  const Line& peek() const { return lines_[next_]; }
+  const Line& take() { return lines_[next_++]; }
+  int total_lines() const { return std::max(total_lines_, 1); }
+  const std::string& path() const { return path_; }
+
+  [[noreturn]] void fail(int line, const std::string& what) const {
+    throw ReadError{format_error(path_, line, what)};
+  }
+  [[noreturn]] void fail_at_end(const std::string& what) const { fail(total_lines(), what); }
+
+  long long integer(const Line& line, std::size_t i, const char* what) const {
+    long long v = 0;
+    if (!parse_integer(line.tokens[i], v))
+      fail(line.number,
+           std::string("expected an integer ") + what + ", got " + quoted(line.tokens[i]));
+    return v;
+  }
+  double real(const Line& line, std::size_t i, const char* what) const {
+    double v = 0;
+    if (!parse_double(line.tokens[i], v))
+      fail(line.number,
+           std::string("expected a number ") + what + ", got " + quoted(line.tokens[i]));
+    return v;
+  }
+  /// A declared entry count: a non-negative integer that fits an int.
+  int count(const Line& line, std::size_t i, const char* what) const {
+    const long long n = integer(line, i, what);
+    if (n < 0 || n > INT_MAX)
+      fail(line.number, std::string("invalid ") + what + " " + std::to_string(n));
+    return static_cast<int>(n);
+  }
+
+ private:
+  std::string path_;
+  std::vector<Line> lines_;
+  std::size_t next_ = 0;
+  int total_lines_ = 0;
+};
+
+/// What the format parsers produce: entries as written in the file, with their line numbers.
+struct RawMesh {
+  std::string vertex_file, tet_file;
+  int base = 1;  ///< index of the first vertex in the file's numbering
+  std::vector<std::array<double, 3>> vertices;
+  std::vector<int> vertex_lines;
+  std::vector<std::array<long long, 4>> tets;  ///< vertex indices as written (file numbering)
+  std::vector<long long> tet_labels;           ///< element number used in messages
+  std::vector<int> tet_lines;
+};
+
+constexpr std::size_t kReserveCap = 1 << 20;  // never trust a header with a huge allocation
+
+void reserve_for(RawMesh& raw, int vertices, int tets) {
+  if (vertices >= 0) {
+    raw.vertices.reserve(std::min<std::size_t>(vertices, kReserveCap));
+    raw.vertex_lines.reserve(std::min<std::size_t>(vertices, kReserveCap));
+  }
+  if (tets >= 0) {
+    raw.tets.reserve(std::min<std::size_t>(tets, kReserveCap));
+    raw.tet_labels.reserve(std::min<std::size_t>(tets, kReserveCap));
+    raw.tet_lines.reserve(std::min<std::size_t>(tets, kReserveCap));
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Medit .mesh
+
+bool is_medit_keyword(const Line& line) {
+  double unused = 0;
+  return std::isalpha(static_cast<unsigned char>(line.tokens[0][0])) &&
+         !parse_double(line.tokens[0], unused);
+}
+
+/// The count after a keyword: on the keyword's line or alone on the next line.
+int medit_count(LineSource& src, const Line& keyword_line, const std::string& keyword) {
+  if (keyword_line.tokens.size() >= 2) {
+    if (keyword_line.tokens.size() > 2)
+      src.fail(keyword_line.number,
+               "unexpected " + quoted(keyword_line.tokens[2]) + " after " + keyword + " count");
+    return src.count(keyword_line, 1, ("(" + keyword + " count)").c_str());
+  }
+  if (src.at_end()) src.fail_at_end("file ends before the " + keyword + " count");
+  const Line& line = src.take();
+  if (line.tokens.size() != 1)
+    src.fail(line.number, "expected the " + keyword + " count alone on the line, got " +
+                              std::to_string(line.tokens.size()) + " values");
+  return src.count(line, 0, ("(" + keyword + " count)").c_str());
+}
+
+/// Checks that the i-th of n entries of a section is present; returns its line.
+const Line& medit_entry(LineSource& src, const std::string& section, int i, int n) {
+  if (src.at_end())
+    src.fail_at_end("file ends after " + std::to_string(i) + " of the " + std::to_string(n) + " " +
+                    section + " entries (truncated file?)");
+  if (is_medit_keyword(src.peek()))
+    src.fail(src.peek().number, "section " + quoted(src.peek().tokens[0]) + " starts after only " +
+                                    std::to_string(i) + " of the " + std::to_string(n) + " " +
+                                    section + " entries");
+  return src.take();
+}
+
+RawMesh read_medit(const std::string& path) {
+  LineSource src(path, false);
+  RawMesh raw;
+  raw.vertex_file = raw.tet_file = path;
+  raw.base = 1;
+  int vertices_line = 0, tets_line = 0;
+  while (!src.at_end()) {
+    const Line& line = src.take();
+    if (!is_medit_keyword(line))
+      src.fail(line.number, "unexpected " + quoted(line.tokens[0]) + " outside a section");
+    const std::string keyword = line.tokens[0];
+    const std::string lower = to_lower(keyword);
+    if (lower == "end") break;
+    if (lower == "meshversionformatted") {
+      medit_count(src, line, keyword);
+    } else if (lower == "dimension") {
+      const int dim = medit_count(src, line, keyword);
+      if (dim != 3)
+        src.fail(line.number, "Dimension " + std::to_string(dim) + ", only 3 is supported");
+    } else if (lower == "vertices") {
+      if (vertices_line != 0)
+        src.fail(line.number, "second Vertices section (the first is at line " +
+                                  std::to_string(vertices_line) + ")");
+      vertices_line = line.number;
+      const int n = medit_count(src, line, keyword);
+      reserve_for(raw, n, -1);
+      for (int i = 0; i < n; ++i) {
+        const Line& e = medit_entry(src, "Vertices", i, n);
+        if (e.tokens.size() != 4 && e.tokens.size() != 3)
+          src.fail(e.number, "vertex " + std::to_string(i + 1) + ": expected 'x y z ref', got " +
+                                 std::to_string(e.tokens.size()) + " values");
+        raw.vertices.push_back(
+            {src.real(e, 0, "(x)"), src.real(e, 1, "(y)"), src.real(e, 2, "(z)")});
+        if (e.tokens.size() == 4) src.integer(e, 3, "(vertex reference label)");
+        raw.vertex_lines.push_back(e.number);
+      }
+    } else if (lower == "tetrahedra") {
+      if (tets_line != 0)
+        src.fail(line.number, "second Tetrahedra section (the first is at line " +
+                                  std::to_string(tets_line) + ")");
+      tets_line = line.number;
+      const int n = medit_count(src, line, keyword);
+      reserve_for(raw, -1, n);
+      for (int i = 0; i < n; ++i) {
+        const Line& e = medit_entry(src, "Tetrahedra", i, n);
+        if (e.tokens.size() != 5 && e.tokens.size() != 4)
+          src.fail(e.number, "tetrahedron " + std::to_string(i + 1) +
+                                 ": expected 'v1 v2 v3 v4 ref', got " +
+                                 std::to_string(e.tokens.size()) + " values");
+        std::array<long long, 4> t{};
+        for (std::size_t a = 0; a < 4; ++a) t[a] = src.integer(e, a, "(vertex index)");
+        if (e.tokens.size() == 5) src.integer(e, 4, "(tetrahedron reference label)");
+        raw.tets.push_back(t);
+        raw.tet_labels.push_back(i + 1);
+        raw.tet_lines.push_back(e.number);
+      }
+    } else {
+      // Other sections (Triangles, Edges, Corners, Ridges, Normals, ...): skip their data lines.
+      while (!src.at_end() && !is_medit_keyword(src.peek())) src.take();
+    }
+  }
+  if (vertices_line == 0) src.fail_at_end("no Vertices section");
+  if (tets_line == 0) src.fail_at_end("no Tetrahedra section");
+  return raw;
+}
+
+// ---------------------------------------------------------------------------------------------
+// VegaFEM .veg
+
+bool is_veg_keyword(const Line& line) {
+  return line.tokens[0][0] == '*';
+}
+
+const Line& veg_entry(LineSource& src, const char* what, int i, int n, int header_line) {
+  if (src.at_end())
+    src.fail_at_end("file ends after " + std::to_string(i) + " of the " + std::to_string(n) + " " +
+                    what + " declared at line " + std::to_string(header_line) +
+                    " (truncated file?)");
+  if (is_veg_keyword(src.peek()))
+    src.fail(src.peek().number, quoted(src.peek().tokens[0]) + " starts after only " +
+                                    std::to_string(i) + " of the " + std::to_string(n) + " " +
+                                    what + " declared at line " + std::to_string(header_line));
+  return src.take();
+}
+
+/// After a section's n entries: the next line must start another section (or the file ends).
+void veg_expect_section_end(LineSource& src, const char* what, int n, int header_line) {
+  if (!src.at_end() && !is_veg_keyword(src.peek()))
+    src.fail(src.peek().number, "more " + std::string(what) + " than the " + std::to_string(n) +
+                                    " declared at line " + std::to_string(header_line));
+}
+
+const Line& veg_header(LineSource& src, const std::string& after) {
+  if (src.at_end()) src.fail_at_end("file ends right after " + after);
+  if (is_veg_keyword(src.peek()))
+    src.fail(src.peek().number,
+             "expected the header line after " + after + ", got " + quoted(src.peek().tokens[0]));
+  return src.take();
+}
+
+RawMesh read_veg(const std::string& path) {
+  LineSource src(path, true);
+  RawMesh raw;
+  raw.vertex_file = raw.tet_file = path;
+  raw.base = 1;
+  int vertices_line = 0, elements_line = 0;
+  while (!src.at_end()) {
+    const Line& line = src.take();
+    if (!is_veg_keyword(line))
+      src.fail(line.number, "unexpected " + quoted(line.tokens[0]) +
+                                " outside a section (expected a *KEYWORD such as *VERTICES)");
+    const std::string keyword = to_upper(line.tokens[0]);
+    if (keyword == "*VERTICES") {
+      if (vertices_line != 0)
+        src.fail(line.number, "second *VERTICES section (the first is at line " +
+                                  std::to_string(vertices_line) + ")");
+      vertices_line = line.number;
+      const Line& header = veg_header(src, "*VERTICES");
+      if (header.tokens.size() < 2)
+        src.fail(header.number, "expected the vertex header 'count 3 0 0', got " +
+                                    std::to_string(header.tokens.size()) + " value(s)");
+      const int n = src.count(header, 0, "(vertex count)");
+      const long long dim = src.integer(header, 1, "(dimension)");
+      if (dim != 3)
+        src.fail(header.number, "vertex dimension " + std::to_string(dim) + ", expected 3");
+      reserve_for(raw, n, -1);
+      for (int i = 0; i < n; ++i) {
+        const Line& e = veg_entry(src, "vertices", i, n, header.number);
+        if (e.tokens.size() != 4)
+          src.fail(e.number, "expected a vertex line 'index x y z', got " +
+                                 std::to_string(e.tokens.size()) + " values");
+        const long long index = src.integer(e, 0, "(vertex index)");
+        if (index != i + 1)
+          src.fail(e.number, "vertex index " + std::to_string(index) + " where " +
+                                 std::to_string(i + 1) +
+                                 " was expected (vertices are numbered 1, 2, ... in order)");
+        raw.vertices.push_back(
+            {src.real(e, 1, "(x)"), src.real(e, 2, "(y)"), src.real(e, 3, "(z)")});
+        raw.vertex_lines.push_back(e.number);
+      }
+      veg_expect_section_end(src, "vertex lines", n, header.number);
+    } else if (keyword == "*ELEMENTS") {
+      if (elements_line != 0)
+        src.fail(line.number, "second *ELEMENTS section (the first is at line " +
+                                  std::to_string(elements_line) +
+                                  "); only one TET section is supported");
+      elements_line = line.number;
+      const Line& type = veg_header(src, "*ELEMENTS");
+      if (to_upper(type.tokens[0]) != "TET" || type.tokens.size() != 1)
+        src.fail(type.number, "element type " + quoted(type.tokens[0]) + ", only TET is supported");
+      const Line& header = veg_header(src, "TET");
+      if (header.tokens.size() < 2)
+        src.fail(header.number, "expected the element header 'count 4 0', got " +
+                                    std::to_string(header.tokens.size()) + " value(s)");
+      const int n = src.count(header, 0, "(element count)");
+      const long long npe = src.integer(header, 1, "(vertices per element)");
+      if (npe != 4)
+        src.fail(header.number, std::to_string(npe) + " vertices per element, expected 4 for TET");
+      reserve_for(raw, -1, n);
+      for (int i = 0; i < n; ++i) {
+        const Line& e = veg_entry(src, "elements", i, n, header.number);
+        if (e.tokens.size() != 5)
+          src.fail(e.number, "expected an element line 'index v1 v2 v3 v4', got " +
+                                 std::to_string(e.tokens.size()) + " values");
+        const long long index = src.integer(e, 0, "(element index)");
+        if (index != i + 1)
+          src.fail(e.number, "element index " + std::to_string(index) + " where " +
+                                 std::to_string(i + 1) +
+                                 " was expected (elements are numbered 1, 2, ... in order)");
+        std::array<long long, 4> t{};
+        for (std::size_t a = 0; a < 4; ++a) t[a] = src.integer(e, a + 1, "(vertex index)");
+        raw.tets.push_back(t);
+        raw.tet_labels.push_back(index);
+        raw.tet_lines.push_back(e.number);
+      }
+      veg_expect_section_end(src, "element lines", n, header.number);
+    } else if (keyword == "*INCLUDE") {
+      src.fail(line.number, "*INCLUDE is not supported; merge the included file first");
+    } else {
+      // *MATERIAL, *SET, *REGION, *MASS_DENSITY, ...: skip to the next keyword.
+      while (!src.at_end() && !is_veg_keyword(src.peek())) src.take();
+    }
+  }
+  if (vertices_line == 0) src.fail_at_end("no *VERTICES section");
+  if (elements_line == 0) src.fail_at_end("no *ELEMENTS section");
+  return raw;
+}
+
+// ---------------------------------------------------------------------------------------------
+// TetGen .node / .ele
+
+void tetgen_expect_end(LineSource& src, const char* what, int n) {
+  if (!src.at_end())
+    src.fail(src.peek().number, "more " + std::string(what) + " than the " + std::to_string(n) +
+                                    " declared in the header at line 1");
+}
+
+const Line& tetgen_entry(LineSource& src, const char* what, int i, int n, int header_line) {
+  if (src.at_end())
+    src.fail_at_end("file ends after " + std::to_string(i) + " of the " + std::to_string(n) + " " +
+                    what + " declared at line " + std::to_string(header_line) +
+                    " (truncated file?)");
+  return src.take();
+}
+
+RawMesh read_tetgen(const std::string& path) {
+  const std::filesystem::path p(path);
+  std::filesystem::path base = p;
+  base.replace_extension();
+  const std::string node_path = base.string() + ".node", ele_path = base.string() + ".ele";
+  RawMesh raw;
+  raw.vertex_file = node_path;
+  raw.tet_file = ele_path;
+  {
+    LineSource src(node_path, false);
+    if (src.at_end()) src.fail_at_end("empty file, expected the header 'count 3 nattr nbound'");
+    const Line& header = src.take();
+    if (header.tokens.size() < 2 || header.tokens.size() > 4)
+      src.fail(header.number, "expected the header 'count 3 nattr nbound', got " +
+                                  std::to_string(header.tokens.size()) + " values");
+    const int n = src.count(header, 0, "(vertex count)");
+    const long long dim = src.integer(header, 1, "(dimension)");
+    if (dim != 3) src.fail(header.number, "dimension " + std::to_string(dim) + ", expected 3");
+    const int nattr = header.tokens.size() > 2 ? src.count(header, 2, "(attribute count)") : 0;
+    const int nbound =
+        header.tokens.size() > 3 ? src.count(header, 3, "(boundary marker count)") : 0;
+    if (nbound > 1)
+      src.fail(header.number,
+               "boundary marker count " + std::to_string(nbound) + ", expected 0 or 1");
+    if (n == 0)
+      src.fail(header.number, "no vertices (count 0; vertices in a .poly file are not supported)");
+    const std::size_t width =
+        4 + static_cast<std::size_t>(nattr) + static_cast<std::size_t>(nbound);
+    reserve_for(raw, n, -1);
+    for (int i = 0; i < n; ++i) {
+      const Line& e = tetgen_entry(src, "vertices", i, n, header.number);
+      if (e.tokens.size() != width)
+        src.fail(e.number, "expected " + std::to_string(width) + " values (index x y z" +
+                               (nattr > 0 ? " attributes" : "") + (nbound > 0 ? " marker" : "") +
+                               "), got " + std::to_string(e.tokens.size()));
+      const long long index = src.integer(e, 0, "(vertex index)");
+      if (i == 0) {
+        if (index != 0 && index != 1)
+          src.fail(e.number, "first vertex index " + std::to_string(index) + ", expected 0 or 1");
+        raw.base = static_cast<int>(index);
+      } else if (index != raw.base + i) {
+        src.fail(e.number, "vertex index " + std::to_string(index) + " where " +
+                               std::to_string(raw.base + i) +
+                               " was expected (consecutive numbering)");
+      }
+      raw.vertices.push_back({src.real(e, 1, "(x)"), src.real(e, 2, "(y)"), src.real(e, 3, "(z)")});
+      raw.vertex_lines.push_back(e.number);
+    }
+    tetgen_expect_end(src, "vertex lines", n);
+  }
+  {
+    LineSource src(ele_path, false);
+    if (src.at_end()) src.fail_at_end("empty file, expected the header 'count 4 nattr'");
+    const Line& header = src.take();
+    if (header.tokens.size() < 2 || header.tokens.size() > 3)
+      src.fail(header.number, "expected the header 'count 4 nattr', got " +
+                                  std::to_string(header.tokens.size()) + " values");
+    const int n = src.count(header, 0, "(tetrahedron count)");
+    const long long npe = src.integer(header, 1, "(vertices per tetrahedron)");
+    if (npe != 4)
+      src.fail(header.number,
+               std::to_string(npe) + " vertices per tetrahedron, only 4 is supported");
+    const int nattr = header.tokens.size() > 2 ? src.count(header, 2, "(attribute count)") : 0;
+    const std::size_t width = 5 + static_cast<std::size_t>(nattr);
+    reserve_for(raw, -1, n);
+    for (int i = 0; i < n; ++i) {
+      const Line& e = tetgen_entry(src, "tetrahedra", i, n, header.number);
+      if (e.tokens.size() != width)
+        src.fail(e.number, "expected " + std::to_string(width) + " values (index v1 v2 v3 v4" +
+                               (nattr > 0 ? " attributes" : "") + "), got " +
+                               std::to_string(e.tokens.size()));
+      const long long index = src.integer(e, 0, "(tetrahedron index)");
+      if (index != raw.base + i)
+        src.fail(e.number, "tetrahedron index " + std::to_string(index) + " where " +
+                               std::to_string(raw.base + i) + " was expected (numbering from " +
+                               std::to_string(raw.base) + " as in " + node_path + ")");
+      std::array<long long, 4> t{};
+      for (std::size_t a = 0; a < 4; ++a) t[a] = src.integer(e, a + 1, "(vertex index)");
+      raw.tets.push_back(t);
+      raw.tet_labels.push_back(index);
+      raw.tet_lines.push_back(e.number);
+    }
+    tetgen_expect_end(src, "tetrahedron lines", n);
+  }
+  return raw;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Validation
+
+std::string number(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+double signed_volume(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                     const Eigen::Vector3d& d) {
+  return (b - a).cross(c - a).dot(d - a) / 6.0;
+}
+
+TetMeshReadResult validate(const RawMesh& raw, const TetMeshReadOptions& options) {
+  const auto vertex_error = [&](std::size_t i, const std::string& what) {
+    return format_error(raw.vertex_file, raw.vertex_lines[i], what);
+  };
+  const auto tet_error = [&](std::size_t t, const std::string& what) {
+    return format_error(raw.tet_file, raw.tet_lines[t],
+                        "element " + std::to_string(raw.tet_labels[t]) + " " + what);
+  };
+  TetMeshReadResult result;
+  const auto nv = static_cast<Eigen::Index>(raw.vertices.size());
+  const auto nt = static_cast<Eigen::Index>(raw.tets.size());
+  if (nt == 0) {
+    result.error = raw.tet_file + ": the mesh has no tetrahedra";
+    return result;
+  }
+  TetMesh mesh;
+  mesh.vertices.resize(nv, 3);
+  for (Eigen::Index i = 0; i < nv; ++i) {
+    const auto& v = raw.vertices[static_cast<std::size_t>(i)];
+    if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) {
+      result.error =
+          vertex_error(static_cast<std::size_t>(i),
+                       "vertex " + std::to_string(i + raw.base) + " has a non-finite coordinate (" +
+                           number(v[0]) + " " + number(v[1]) + " " + number(v[2]) + ")");
+      return result;
+    }
+    mesh.vertices.row(i) << v[0], v[1], v[2];
+  }
+  mesh.tets.resize(nt, 4);
+  for (Eigen::Index t = 0; t < nt; ++t) {
+    const auto ts = static_cast<std::size_t>(t);
+    const auto& tet = raw.tets[ts];
+    for (int a = 0; a < 4; ++a) {
+      const long long local = tet[static_cast<std::size_t>(a)] - raw.base;
+      if (local < 0 || local >= nv) {
+        result.error =
+            tet_error(ts, "references vertex " + std::to_string(tet[static_cast<std::size_t>(a)]) +
+                              ", but there are " + std::to_string(nv) + " vertices" +
+                              (raw.base == 0 ? " (numbered from 0)" : ""));
+        return result;
+      }
+      mesh.tets(t, a) = static_cast<int>(local);
+    }
+    for (int a = 0; a < 4; ++a) {
+      for (int b = a + 1; b < 4; ++b) {
+        if (mesh.tets(t, a) == mesh.tets(t, b)) {
+          result.error =
+              tet_error(ts, "repeats vertex " + std::to_string(tet[static_cast<std::size_t>(a)]));
+          return result;
+        }
+      }
+    }
+  }
+  const double diag =
+      nv > 0 ? (mesh.vertices.colwise().maxCoeff() - mesh.vertices.colwise().minCoeff()).norm()
+             : 0.0;
+  const double tolerance = 1e-12 * diag * diag * diag;
+  for (Eigen::Index t = 0; t < nt; ++t) {
+    const auto ts = static_cast<std::size_t>(t);
+    const auto x = [&](int a) -> Eigen::Vector3d {
+      return mesh.vertices.row(mesh.tets(t, a)).transpose();
+    };
+    const double volume = signed_volume(x(0), x(1), x(2), x(3));
+    if (std::abs(volume) < tolerance || volume == 0.0) {
+      result.error =
+          tet_error(ts, "is degenerate (signed volume " + number(volume) +
+                            ", below 1e-12 * bbox_diagonal^3 = " + number(tolerance) + ")");
+      return result;
+    }
+    if (volume < 0) {
+      if (!options.fix_orientation) {
+        result.error = tet_error(
+            ts,
+            "is inverted (signed volume " + number(volume) +
+                "); positive orientation is required (fix_orientation swaps two of its vertices)");
+        return result;
+      }
+      std::swap(mesh.tets(t, 2), mesh.tets(t, 3));
+      ++result.flipped_tets;
+    }
+  }
+  result.mesh = std::move(mesh);
+  return result;
+}
+
+bool fail_write(std::string* error, const std::string& message) {
+  if (error != nullptr) *error = message;
+  return false;
+}
+
+/// Checks the tets index existing vertices (writers must not produce unreadable files).
+bool check_mesh_for_write(const std::string& path, const TetMesh& mesh, std::string* error) {
+  if (mesh.tets.size() > 0 &&
+      (mesh.tets.minCoeff() < 0 || mesh.tets.maxCoeff() >= mesh.vertices.rows()))
+    return fail_write(error, path + ": cannot write: a tet references a vertex outside 0.." +
+                                 std::to_string(mesh.vertices.rows() - 1));
+  return true;
+}
+
+}  // namespace
+
+TetMeshReadResult read_tet_mesh(const std::string& path, const TetMeshReadOptions& options) {
+  try {
+    const std::string ext = to_lower(std::filesystem::path(path).extension().string());
+    RawMesh raw;
+    if (ext == ".mesh") {
+      raw = read_medit(path);
+    } else if (ext == ".veg") {
+      raw = read_veg(path);
+    } else if (ext == ".node" || ext == ".ele") {
+      raw = read_tetgen(path);
+    } else {
+      TetMeshReadResult result;
+      result.error = path + ": unknown tet-mesh extension " +
+                     quoted(ext.empty() ? std::string("(none)") : ext) +
+                     " (expected .mesh, .veg, .node or .ele)";
+      return result;
+    }
+    return validate(raw, options);
+  } catch (const ReadError& e) {
+    TetMeshReadResult result;
+    result.error = e.message;
+    return result;
+  } catch (const std::bad_alloc&) {
+    TetMeshReadResult result;
+    result.error = path + ": out of memory while reading";
+    return result;
+  } catch (const std::exception& e) {
+    TetMeshReadResult result;
+    result.error = path + ": " + e.what();
+    return result;
+  } catch (...) {
+    TetMeshReadResult result;
+    result.error = path + ": unknown error while reading";
+    return result;
+  }
+}
+
+bool write_medit_mesh(const std::string& path, const TetMesh& mesh, std::string* error) {
+  try {
+    if (!check_mesh_for_write(path, mesh, error)) return false;
+    std::ofstream out(path, std::ios::binary);
+    if (!out)
+      return fail_write(error, path + ": cannot open for writing (" + std::strerror(errno) + ")");
+    out.precision(std::numeric_limits<double>::max_digits10);
+    out << "MeshVersionFormatted 1\n\nDimension 3\n\nVertices\n" << mesh.vertices.rows() << "\n";
+    for (Eigen::Index i = 0; i < mesh.vertices.rows(); ++i)
+      out << mesh.vertices(i, 0) << " " << mesh.vertices(i, 1) << " " << mesh.vertices(i, 2)
+          << " 0\n";
+    out << "\nTetrahedra\n" << mesh.tets.rows() << "\n";
+    for (Eigen::Index t = 0; t < mesh.tets.rows(); ++t)
+      out << mesh.tets(t, 0) + 1 << " " << mesh.tets(t, 1) + 1 << " " << mesh.tets(t, 2) + 1 << " "
+          << mesh.tets(t, 3) + 1 << " 0\n";
+    out << "\nEnd\n";
+    out.close();
+    if (!out) return fail_write(error, path + ": write error");
+    return true;
+  } catch (const std::exception& e) {
+    return fail_write(error, path + ": " + e.what());
+  }
+}
+
+namespace {
+std::string xml_escape(const std::string& s) {
+  std::string r;
+  for (const char c : s) {
+    switch (c) {
+      case '&':
+        r += "&amp;";
+        break;
+      case '<':
+        r += "&lt;";
+        break;
+      case '>':
+        r += "&gt;";
+        break;
+      case '"':
+        r += "&quot;";
+        break;
+      case '\'':
+        r += "&apos;";
+        break;
+      default:
+        r += c;
+    }
+  }
+  return r;
+}
+}  // namespace
+
+bool write_vtu(const std::string& path, const TetMesh& mesh, const TetScalarFields& cell_fields,
+               std::string* error) {
+  try {
+    if (!check_mesh_for_write(path, mesh, error)) return false;
+    for (const auto& [name, values] : cell_fields) {
+      if (values.size() != mesh.tets.rows())
+        return fail_write(error, path + ": cannot write: field '" + name + "' has " +
+                                     std::to_string(values.size()) + " values for " +
+                                     std::to_string(mesh.tets.rows()) + " tets");
+    }
+    std::ofstream out(path, std::ios::binary);
+    if (!out)
+      return fail_write(error, path + ": cannot open for writing (" + std::strerror(errno) + ")");
+    out.precision(std::numeric_limits<double>::max_digits10);
+    const Eigen::Index nv = mesh.vertices.rows(), nt = mesh.tets.rows();
+    out << "<?xml version=\"1.0\"?>\n"
+        << "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
+           "header_type=\"UInt64\">\n"
+        << "  <UnstructuredGrid>\n"
+        << "    <Piece NumberOfPoints=\"" << nv << "\" NumberOfCells=\"" << nt << "\">\n"
+        << "      <Points>\n"
+        << "        <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+    for (Eigen::Index i = 0; i < nv; ++i)
+      out << "          " << mesh.vertices(i, 0) << " " << mesh.vertices(i, 1) << " "
+          << mesh.vertices(i, 2) << "\n";
+    out << "        </DataArray>\n"
+        << "      </Points>\n"
+        << "      <Cells>\n"
+        << "        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n";
+    for (Eigen::Index t = 0; t < nt; ++t)
+      out << "          " << mesh.tets(t, 0) << " " << mesh.tets(t, 1) << " " << mesh.tets(t, 2)
+          << " " << mesh.tets(t, 3) << "\n";
+    out << "        </DataArray>\n"
+        << "        <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n";
+    for (Eigen::Index t = 0; t < nt; ++t)
+      out << (t % 16 == 0 ? "          " : " ") << 4 * (t + 1)
+          << (t % 16 == 15 || t + 1 == nt ? "\n" : "");
+    out << "        </DataArray>\n"
+        << "        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+    for (Eigen::Index t = 0; t < nt; ++t)
+      out << (t % 16 == 0 ? "          " : " ") << 10 << (t % 16 == 15 || t + 1 == nt ? "\n" : "");
+    out << "        </DataArray>\n"
+        << "      </Cells>\n";
+    if (!cell_fields.empty()) {
+      out << "      <CellData Scalars=\"" << xml_escape(cell_fields.front().first) << "\">\n";
+      for (const auto& [name, values] : cell_fields) {
+        out << "        <DataArray type=\"Float64\" Name=\"" << xml_escape(name)
+            << "\" format=\"ascii\">\n";
+        for (Eigen::Index t = 0; t < nt; ++t) out << "          " << values[t] << "\n";
+        out << "        </DataArray>\n";
+      }
+      out << "      </CellData>\n";
+    }
+    out << "    </Piece>\n"
+        << "  </UnstructuredGrid>\n"
+        << "</VTKFile>\n";
+    out.close();
+    if (!out) return fail_write(error, path + ": write error");
+    return true;
+  } catch (const std::exception& e) {
+    return fail_write(error, path + ": " + e.what());
+  }
+}
+
+}  // namespace sinew::offline

@@ -1,0 +1,61 @@
+#pragma once
+/// Tet-mesh readers and writers of the offline registration tool: Medit `.mesh` (ASCII), VegaFEM
+/// `.veg` (ASCII) and TetGen `.node`/`.ele` are read directly; Medit `.mesh` and VTK XML `.vtu`
+/// (ASCII UnstructuredGrid, for ParaView) are written.
+///
+/// Errors are never thrown: every failure is reported as ONE line "file:line: what is wrong"
+/// (just "file: what is wrong" when no line applies: unknown extension, unreadable file), e.g.
+///   box.veg:12: element 7 references vertex 513, but there are 512 vertices
+///
+/// After parsing, the mesh is validated: entry counts match the headers, element indices are in
+/// range, coordinates are finite, no tet repeats a vertex, and no tet is degenerate
+/// (|V| < 1e-12 · bbox_diagonal³). Negatively oriented tets are either fixed by swapping their
+/// last two vertices (TetMeshReadOptions::fix_orientation, default; counted in
+/// TetMeshReadResult::flipped_tets) or reported as an error.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace sinew::offline {
+
+struct TetMesh {
+  Eigen::Matrix<double, Eigen::Dynamic, 3> vertices;  ///< #V by 3
+  Eigen::Matrix<int, Eigen::Dynamic, 4> tets;         ///< #T by 4, 0-based vertex indices
+};
+
+struct TetMeshReadOptions {
+  /// Swap two vertices of negatively oriented tets (true) or report the first one as an error.
+  bool fix_orientation = true;
+};
+
+struct TetMeshReadResult {
+  std::optional<TetMesh> mesh;  ///< set on success
+  std::string error;            ///< one line "file:line: message" on failure, empty on success
+  int flipped_tets = 0;         ///< tets whose orientation was fixed (fix_orientation only)
+  bool ok() const { return mesh.has_value(); }
+};
+
+/// Reads a tet mesh, dispatching on the extension (case-insensitive): `.mesh` (Medit ASCII:
+/// Vertices and Tetrahedra sections, 1-based, one reference label per entry; other sections are
+/// ignored), `.veg` (VegaFEM: *VERTICES and *ELEMENTS/TET; other sections are ignored), `.node` or
+/// `.ele` (TetGen: both "<base>.node" and "<base>.ele" are read; numbering from 0 or 1, taken from
+/// the first vertex index).
+TetMeshReadResult read_tet_mesh(const std::string& path, const TetMeshReadOptions& options = {});
+
+/// Per-tet scalar fields for write_vtu: (name, one value per tet).
+using TetScalarFields = std::vector<std::pair<std::string, Eigen::VectorXd>>;
+
+/// Writes a Medit ASCII `.mesh` (MeshVersionFormatted 1, Dimension 3, Vertices, Tetrahedra; labels
+/// 0; full double precision). Returns false and sets *error (if given) on failure.
+bool write_medit_mesh(const std::string& path, const TetMesh& mesh, std::string* error = nullptr);
+
+/// Writes an ASCII VTK XML UnstructuredGrid (`.vtu`): Points, Cells (connectivity, offsets,
+/// types = 10, VTK_TETRA) and one CellData Float64 DataArray per field. Each field must have one
+/// value per tet. Returns false and sets *error (if given) on failure.
+bool write_vtu(const std::string& path, const TetMesh& mesh,
+               const TetScalarFields& cell_fields = {}, std::string* error = nullptr);
+
+}  // namespace sinew::offline
