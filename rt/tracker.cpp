@@ -268,6 +268,10 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   }
   tangent_.resize(n);
   ldlt_.resize(n);
+  if (options_.dense_solve) {
+    dense_tangent_.setZero(dofs, dofs);
+    dense_ldlt_ = Eigen::LDLT<Eigen::MatrixXd>(dofs);
+  }
   if (options_.model == TrackerModel::kSnake) {
     snake_matrix_.setZero(dofs, dofs);
     snake_ldlt_ = Eigen::LDLT<Eigen::MatrixXd>(dofs);
@@ -502,9 +506,24 @@ bool Tracker::newton_step() {
     for (Eigen::Index k = 0; k < gradient_.size(); ++k) {
       if (fixed[k]) gradient_[k] = 0.0;
     }
-    if (!ldlt_.factor(tangent_)) return false;
     du_ = -gradient_;
-    ldlt_.solve_in_place(du_);
+    if (options_.dense_solve) {
+      // The seed's dense solve (for comparisons): the same matrix, factorised as a full one.
+      dense_tangent_.setZero();
+      for (int i = 0; i < n; ++i) {
+        dense_tangent_.block<3, 3>(3 * i, 3 * i) = tangent_.diagonal(i);
+        if (i + 1 < n) {
+          dense_tangent_.block<3, 3>(3 * i + 3, 3 * i) = tangent_.lower(i);
+          dense_tangent_.block<3, 3>(3 * i, 3 * i + 3) = tangent_.lower(i).transpose();
+        }
+      }
+      dense_ldlt_.compute(dense_tangent_);
+      if (dense_ldlt_.info() != Eigen::Success) return false;
+      dense_ldlt_.solveInPlace(du_);
+    } else {
+      if (!ldlt_.factor(tangent_)) return false;
+      ldlt_.solve_in_place(du_);
+    }
   } else {
     snake_matrix_.setZero();
     gradient_.setZero();

@@ -90,6 +90,9 @@ struct TrackerOptions {
   double min_relative_strength = 0.4;
   /// ... and lies within this distance of the fitted model, pixels, > 0.
   double object_residual_px = 1.5;
+  /// Solve each Newton step as a dense system (the seed's O(n³) solve) instead of
+  /// block-tridiagonal; for comparisons only.
+  bool dense_solve = false;
   /// Predict from the last two frames (constant velocity); otherwise start from the last frame.
   bool predict = true;
   /// Verify the recovered per-node forces by a forward static solve (seed 000 §4).
@@ -228,6 +231,8 @@ class Tracker {
   common::BlockTridiagonal tangent_;
   common::BlockTridiagonalLdlt ldlt_;
   // Snake baseline: dense system (its bending term couples nodes i−1 and i+1).
+  Eigen::MatrixXd dense_tangent_;  // dense_solve only
+  Eigen::LDLT<Eigen::MatrixXd> dense_ldlt_;
   Eigen::MatrixXd snake_matrix_;
   Eigen::LDLT<Eigen::MatrixXd> snake_ldlt_;
   std::vector<unsigned char> snake_fixed_;

@@ -90,3 +90,49 @@ TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
 
 }  // namespace
 }  // namespace sinew::rt
+
+namespace sinew::rt {
+namespace {
+
+// A dense Newton solve (the seed's O(n³) solve, kept for comparisons) gives the same fit as the
+// block-tridiagonal one: it is the same system.
+TEST(Tracker, DenseSolveMatchesBandedSolve) {
+  const Cantilever c;
+  const common::BeamModel fine(c.description(4));
+  common::StaticSolverOptions so;
+  so.load_steps = 4;
+  common::StaticBeamSolver solver(fine, so);
+  Eigen::VectorXd u_fine = Eigen::VectorXd::Zero(fine.num_dofs());
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(fine.num_dofs()), f_prev = f;
+
+  TrackerOptions banded_options;
+  banded_options.observation = ObservationMode::kEdge;
+  banded_options.half_width_px = 3.0;
+  TrackerOptions dense_options = banded_options;
+  dense_options.dense_solve = true;
+  Tracker banded(c.description(1), banded_options), dense(c.description(1), dense_options);
+  ASSERT_TRUE(banded.valid() && dense.valid());
+
+  for (int k = 0; k < 10; ++k) {
+    f.setZero();
+    f[fine.num_dofs() - 2] = 0.05 * k;
+    ASSERT_TRUE(solver.solve(f, u_fine, &f_prev).converged());
+    f_prev = f;
+    GreyImage img(320, 240, 200);
+    sinew::testing::draw_band(img, sinew::testing::centreline_points(fine, u_fine, 8), 3.0, 60);
+    SCOPED_TRACE("frame " + std::to_string(k));
+    EXPECT_EQ(banded.track(img.view()).status, FrameStatus::kOk);
+    EXPECT_EQ(dense.track(img.view()).status, FrameStatus::kOk);
+    double same = 0.0, error = 0.0;
+    for (int i = 0; i <= c.elements; ++i) {
+      same = std::max(same, (banded.node_position(i) - dense.node_position(i)).norm());
+      const Eigen::Vector2d truth = fine.rest_positions().col(4 * i) + u_fine.segment<2>(12 * i);
+      error = std::max(error, (dense.node_position(i) - truth).norm());
+    }
+    EXPECT_LT(same, 1e-6) << "dense and banded solves of the same system";
+    EXPECT_LT(error, 0.3) << "and both follow the beam";
+  }
+}
+
+}  // namespace
+}  // namespace sinew::rt
