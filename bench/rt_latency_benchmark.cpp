@@ -9,10 +9,13 @@
 #include <chrono>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <vector>
 
 #include "common/beam/static_solver.hpp"
 #include "rt/tracker.hpp"
+// Hooks malloc/new to count allocations in the tracked frames (this is the executable's only TU).
+#include "tests/support/allocation_counter.hpp"
 
 namespace {
 
@@ -77,16 +80,26 @@ void track_sequence(benchmark::State& state, bool extras) {
   const auto& seq = frames();
   std::vector<double> micros;
   int lost = 0;
+  long allocations = 0, counted_frames = 0;
   for (auto _ : state) {
     rt::Tracker tracker(cantilever(elements), options,
                         extras ? std::vector<int>{elements} : std::vector<int>{});
+    bool first = true;
     for (const cv::Mat& m : seq) {
       const rt::ImageView view{m.ptr<std::uint8_t>(), m.cols, m.rows,
                                static_cast<std::ptrdiff_t>(m.step[0])};
+      std::optional<sinew::testing::AllocationCounter> counter;
+      if (!first) counter.emplace();  // frames after the first must not allocate
       const auto t0 = std::chrono::steady_clock::now();
       const rt::FrameSummary s = tracker.track(view);
-      micros.push_back(
-          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+      const auto t1 = std::chrono::steady_clock::now();
+      if (counter) {
+        counter->stop();
+        allocations += counter->total();
+        ++counted_frames;
+      }
+      first = false;
+      micros.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
       lost += s.status == rt::FrameStatus::kLost;
     }
   }
@@ -94,6 +107,9 @@ void track_sequence(benchmark::State& state, bool extras) {
   state.counters["median_us"] = micros[micros.size() / 2];
   state.counters["p99_us"] = micros[std::min(micros.size() - 1, micros.size() * 99 / 100)];
   state.counters["lost"] = lost;
+  if (sinew::testing::allocation_counting_available() && counted_frames > 0) {
+    state.counters["allocs_per_frame"] = double(allocations) / double(counted_frames);
+  }
   state.SetComplexityN(elements);
 }
 
