@@ -34,14 +34,46 @@ struct Cantilever {
   }
 };
 
+// The truth for a sequence of tip loads: the cantilever solved on the fine mesh (warm-started from
+// the previous load) and rendered as a 6 px dark band.
+struct TruthSequence {
+  explicit TruthSequence(const Cantilever& c)
+      : fine(c.description(4)),
+        solver(fine, options()),
+        u(Eigen::VectorXd::Zero(fine.num_dofs())),
+        f_prev(Eigen::VectorXd::Zero(fine.num_dofs())) {}
+
+  static common::StaticSolverOptions options() {
+    common::StaticSolverOptions so;
+    so.load_steps = 4;
+    return so;
+  }
+  /// Solves for tip load P (+y, down in the image); false if the solve failed.
+  bool load(double P) {
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(fine.num_dofs());
+    f[fine.num_dofs() - 2] = P;
+    const bool ok = solver.solve(f, u, &f_prev).converged();
+    f_prev = f;
+    return ok;
+  }
+  GreyImage render() const {
+    GreyImage img(320, 240, 200);
+    sinew::testing::draw_band(img, sinew::testing::centreline_points(fine, u, 8), 3.0, 60);
+    return img;
+  }
+  /// True position of tracker node i (fine node 4i).
+  Eigen::Vector2d node(int i) const {
+    return fine.rest_positions().col(4 * i) + u.segment<2>(12 * i);
+  }
+
+  common::BeamModel fine;
+  common::StaticBeamSolver solver;
+  Eigen::VectorXd u, f_prev;
+};
+
 TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
   const Cantilever c;
-  const common::BeamModel fine(c.description(4));
-  common::StaticSolverOptions so;
-  so.load_steps = 4;
-  common::StaticBeamSolver solver(fine, so);
-  Eigen::VectorXd u_fine = Eigen::VectorXd::Zero(fine.num_dofs());
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(fine.num_dofs()), f_prev = f;
+  TruthSequence truth(c);
 
   TrackerOptions options;
   options.observation = ObservationMode::kEdge;
@@ -56,12 +88,8 @@ TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
   for (int k = 0; k < frames; ++k) {
     const double lambda = lambda_max * k / (frames - 1);
     const double P = lambda * c.EI() / (c.length * c.length);
-    f.setZero();
-    f[fine.num_dofs() - 2] = P;  // +y: down in the image
-    ASSERT_TRUE(solver.solve(f, u_fine, &f_prev).converged());
-    f_prev = f;
-    GreyImage img(320, 240, 200);
-    sinew::testing::draw_band(img, sinew::testing::centreline_points(fine, u_fine, 8), 3.0, 60);
+    ASSERT_TRUE(truth.load(P));
+    GreyImage img = truth.render();
     sinew::testing::add_noise(img, 4.0, gen);
 
     const FrameSummary s = tracker.track(img.view());
@@ -69,8 +97,7 @@ TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
     EXPECT_EQ(s.status, FrameStatus::kOk);
     double sum = 0.0;
     for (int i = 0; i <= c.elements; ++i) {
-      const Eigen::Vector2d truth = fine.rest_positions().col(4 * i) + u_fine.segment<2>(12 * i);
-      sum += (tracker.node_position(i) - truth).squaredNorm();
+      sum += (tracker.node_position(i) - truth.node(i)).squaredNorm();
     }
     const double rms = std::sqrt(sum / (c.elements + 1));
     EXPECT_LT(rms, 0.3) << "node RMS error (px)";
@@ -98,12 +125,7 @@ namespace {
 // block-tridiagonal one: it is the same system.
 TEST(Tracker, DenseSolveMatchesBandedSolve) {
   const Cantilever c;
-  const common::BeamModel fine(c.description(4));
-  common::StaticSolverOptions so;
-  so.load_steps = 4;
-  common::StaticBeamSolver solver(fine, so);
-  Eigen::VectorXd u_fine = Eigen::VectorXd::Zero(fine.num_dofs());
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(fine.num_dofs()), f_prev = f;
+  TruthSequence truth(c);
 
   TrackerOptions banded_options;
   banded_options.observation = ObservationMode::kEdge;
@@ -114,20 +136,15 @@ TEST(Tracker, DenseSolveMatchesBandedSolve) {
   ASSERT_TRUE(banded.valid() && dense.valid());
 
   for (int k = 0; k < 10; ++k) {
-    f.setZero();
-    f[fine.num_dofs() - 2] = 0.05 * k;
-    ASSERT_TRUE(solver.solve(f, u_fine, &f_prev).converged());
-    f_prev = f;
-    GreyImage img(320, 240, 200);
-    sinew::testing::draw_band(img, sinew::testing::centreline_points(fine, u_fine, 8), 3.0, 60);
+    ASSERT_TRUE(truth.load(0.05 * k));
+    const GreyImage img = truth.render();
     SCOPED_TRACE("frame " + std::to_string(k));
     EXPECT_EQ(banded.track(img.view()).status, FrameStatus::kOk);
     EXPECT_EQ(dense.track(img.view()).status, FrameStatus::kOk);
     double same = 0.0, error = 0.0;
     for (int i = 0; i <= c.elements; ++i) {
       same = std::max(same, (banded.node_position(i) - dense.node_position(i)).norm());
-      const Eigen::Vector2d truth = fine.rest_positions().col(4 * i) + u_fine.segment<2>(12 * i);
-      error = std::max(error, (dense.node_position(i) - truth).norm());
+      error = std::max(error, (dense.node_position(i) - truth.node(i)).norm());
     }
     EXPECT_LT(same, 1e-6) << "dense and banded solves of the same system";
     EXPECT_LT(error, 0.3) << "and both follow the beam";
