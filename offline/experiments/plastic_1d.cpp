@@ -4,7 +4,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <sstream>
+#include <utility>
 
 namespace sinew::offline::experiments {
 namespace {
@@ -121,14 +124,174 @@ Eigen::MatrixXd PlasticBar1D::hessian_ss(const Eigen::VectorXd& x, const Eigen::
 }
 
 Eigen::MatrixXd PlasticBar1D::plastic_strain_laplacian() const {
-  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(n_, n_);
-  for (int e = 0; e + 1 < n_; ++e) {  // each adjacency (e, e+1) contributes to both rows
+  return smoothness_matrix(n_, Smoothness1DOrder::kSecond);
+}
+
+Eigen::MatrixXd smoothness_matrix(int n, Smoothness1DOrder order) {
+  if (order == Smoothness1DOrder::kFirst) {
+    // ∫ ḟ_p² with ḟ_p ≈ (p_{e+1} − p_e)/h on a cell of length h: rows (p_{e+1} − p_e)/√h.
+    const double w = std::sqrt(static_cast<double>(n));
+    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(n - 1, n);
+    for (int e = 0; e + 1 < n; ++e) {
+      D(e, e) = -w;
+      D(e, e + 1) = w;
+    }
+    return D;
+  }
+  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(n, n);
+  for (int e = 0; e + 1 < n; ++e) {  // each adjacency (e, e+1) contributes to both rows
     L(e, e + 1) += 1.0;
     L(e, e) -= 1.0;
     L(e + 1, e) += 1.0;
     L(e + 1, e + 1) -= 1.0;
   }
   return L;
+}
+
+const char* to_string(Smoothness1DOrder order) {
+  return order == Smoothness1DOrder::kFirst ? "first order" : "second order";
+}
+
+const char* to_string(Plastic1DModel model) {
+  return model == Plastic1DModel::kPaperQuadratic ? "paper quadratic" : "stable neo-Hookean";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Eqs. 26–27. With d_e = h p_e (1 + c p_e): dc/dp_j = −h (1 + 2 c p_j) / S₂, so
+// dx_i/dp_j = h (1 + 2 c p_j) [j < i] + h P_i dc/dp_j with P_i = Σ_{e<i} p_e².
+
+std::optional<std::string> paper_setup_error(const Plastic1DSetup& setup) {
+  if (setup.attachment_X.size() != 2 || setup.attachment_target.size() != 2 ||
+      setup.attachment_X[0] != 0.0 || setup.attachment_X[1] != 1.0)
+    return std::string(
+        "setup.attachment_X must be {0, 1} (hard end attachments) for "
+        "Plastic1DModel::kPaperQuadratic");
+  if (setup.landmark_X.size() != setup.landmark_target.size())
+    return std::string("setup.landmark_X and setup.landmark_target differ in size");
+  return std::nullopt;
+}
+
+PaperQuadraticBar1D::PaperQuadraticBar1D(int num_elements, Plastic1DSetup setup)
+    : n_(num_elements),
+      setup_(std::move(setup)),
+      w_first_(smoothness_matrix(num_elements, Smoothness1DOrder::kFirst)),
+      w_second_(smoothness_matrix(num_elements, Smoothness1DOrder::kSecond)) {
+  for (double X : setup_.landmark_X) landmark_nodes_.push_back(nearest_node(X, n_));
+}
+
+double PaperQuadraticBar1D::equilibrium_coefficient(const Eigen::VectorXd& p) const {
+  const double T = setup_.attachment_target[1] - setup_.attachment_target[0];
+  return (T - h() * p.sum()) / (h() * p.squaredNorm());
+}
+
+Eigen::VectorXd PaperQuadraticBar1D::positions(const Eigen::VectorXd& p) const {
+  const double c = equilibrium_coefficient(p);
+  Eigen::VectorXd x(n_ + 1);
+  x[0] = setup_.attachment_target[0];
+  for (int e = 0; e < n_; ++e) x[e + 1] = x[e] + h() * p[e] * (1.0 + c * p[e]);
+  x[n_] = setup_.attachment_target[1];  // equal up to round-off; keep the attachment exact
+  return x;
+}
+
+Eigen::MatrixXd PaperQuadraticBar1D::positions_jacobian(const Eigen::VectorXd& p) const {
+  const double c = equilibrium_coefficient(p);
+  const double S2 = h() * p.squaredNorm();
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(n_ + 1, n_);
+  double P = 0.0;  // Σ_{e<i} p_e²
+  for (int i = 1; i < n_; ++i) {
+    P += p[i - 1] * p[i - 1];
+    for (int j = 0; j < n_; ++j) {
+      const double dc = -h() * (1.0 + 2.0 * c * p[j]) / S2;
+      J(i, j) = (j < i ? h() * (1.0 + 2.0 * c * p[j]) : 0.0) + h() * P * dc;
+    }
+  }
+  return J;  // rows 0 and N (the attachments) are zero
+}
+
+double PaperQuadraticBar1D::elastic_energy(const Eigen::VectorXd& x,
+                                           const Eigen::VectorXd& p) const {
+  double e = 0.0;
+  for (int i = 0; i < n_; ++i) {
+    const double r = (x[i + 1] - x[i]) / (h() * p[i]) - 1.0;
+    e += h() * r * r;
+  }
+  return e;
+}
+
+Eigen::VectorXd PaperQuadraticBar1D::elastic_gradient_x(const Eigen::VectorXd& x,
+                                                        const Eigen::VectorXd& p) const {
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(n_ + 1);
+  for (int i = 0; i < n_; ++i) {
+    const double dd = 2.0 * ((x[i + 1] - x[i]) / (h() * p[i]) - 1.0) / p[i];
+    g[i] -= dd;
+    g[i + 1] += dd;
+  }
+  return g;
+}
+
+namespace {
+/// q = (T − S₁)/√S₂ (so E = q²) and dq/dp.
+double elastic_residual(const PaperQuadraticBar1D& bar, const Eigen::VectorXd& p,
+                        Eigen::VectorXd* gradient) {
+  const double h = bar.h();
+  const double T = bar.setup().attachment_target[1] - bar.setup().attachment_target[0];
+  const double S1 = h * p.sum(), S2 = h * p.squaredNorm();
+  const double q = (T - S1) / std::sqrt(S2);
+  if (gradient)
+    *gradient = (-h / std::sqrt(S2)) * Eigen::VectorXd::Ones(p.size()) -
+                ((T - S1) * h / std::pow(S2, 1.5)) * p;
+  return q;
+}
+}  // namespace
+
+double PaperQuadraticBar1D::equilibrium_elastic_energy(const Eigen::VectorXd& p) const {
+  const double q = elastic_residual(*this, p, nullptr);
+  return q * q;
+}
+
+Eigen::VectorXd PaperQuadraticBar1D::equilibrium_elastic_gradient(const Eigen::VectorXd& p) const {
+  Eigen::VectorXd dq;
+  const double q = elastic_residual(*this, p, &dq);
+  return 2.0 * q * dq;
+}
+
+Eigen::VectorXd PaperQuadraticBar1D::residuals(const Eigen::VectorXd& p, double alpha, double beta,
+                                               Smoothness1DOrder order) const {
+  const Eigen::MatrixXd& W = order == Smoothness1DOrder::kFirst ? w_first_ : w_second_;
+  const int q = static_cast<int>(landmark_nodes_.size());
+  Eigen::VectorXd r(W.rows() + q + 1);
+  r.head(W.rows()) = W * p;
+  const Eigen::VectorXd x = positions(p);
+  for (int l = 0; l < q; ++l)
+    r[W.rows() + l] = std::sqrt(alpha) * (x[landmark_nodes_[l]] - setup_.landmark_target[l]);
+  r[W.rows() + q] = std::sqrt(beta) * elastic_residual(*this, p, nullptr);
+  return r;
+}
+
+Eigen::MatrixXd PaperQuadraticBar1D::residual_jacobian(const Eigen::VectorXd& p, double alpha,
+                                                       double beta, Smoothness1DOrder order) const {
+  const Eigen::MatrixXd& W = order == Smoothness1DOrder::kFirst ? w_first_ : w_second_;
+  const int q = static_cast<int>(landmark_nodes_.size());
+  Eigen::MatrixXd Jr(W.rows() + q + 1, n_);
+  Jr.topRows(W.rows()) = W;
+  const Eigen::MatrixXd J = positions_jacobian(p);
+  for (int l = 0; l < q; ++l) Jr.row(W.rows() + l) = std::sqrt(alpha) * J.row(landmark_nodes_[l]);
+  Eigen::VectorXd dq;
+  elastic_residual(*this, p, &dq);
+  Jr.row(W.rows() + q) = std::sqrt(beta) * dq.transpose();
+  return Jr;
+}
+
+double PaperQuadraticBar1D::objective(const Eigen::VectorXd& p, double alpha, double beta,
+                                      Smoothness1DOrder order) const {
+  return residuals(p, alpha, beta, order).squaredNorm();
+}
+
+Eigen::VectorXd PaperQuadraticBar1D::objective_gradient(const Eigen::VectorXd& p, double alpha,
+                                                        double beta,
+                                                        Smoothness1DOrder order) const {
+  return 2.0 * residual_jacobian(p, alpha, beta, order).transpose() *
+         residuals(p, alpha, beta, order);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -143,8 +306,12 @@ std::optional<std::string> Plastic1DOptions::validate() const {
     m << "attachment_stiffness = " << attachment_stiffness << " must be > 0";
   else if (!(alpha > 0))
     m << "alpha = " << alpha << " must be > 0";
+  else if (model == Plastic1DModel::kPaperQuadratic && !(beta > 0))
+    m << "beta = " << beta << " must be > 0 for the paper model (beta = 0 has no minimiser)";
   else if (!(beta >= 0))
     m << "beta = " << beta << " must be >= 0";
+  else if (!(gradient_tolerance > 0))
+    m << "gradient_tolerance = " << gradient_tolerance << " must be > 0";
   else if (max_iterations < 1)
     m << "max_iterations = " << max_iterations << " must be >= 1";
   else if (!(relative_decrease_tolerance >= 0 && relative_decrease_tolerance < 1))
@@ -191,8 +358,9 @@ std::string Plastic1DSummary::full_report() const {
     << "  message: " << (message.empty() ? "-" : message) << "\n"
     << "  equilibrium solves: " << equilibrium_solves << " (" << newton_iterations
     << " Newton iterations, " << equilibrium_seconds << " s)\n"
-    << "  final terms: |Ls|^2 = " << laplacian_term << ", landmark misfit^2 = " << landmark_term
-    << ", E_a = " << attachment_term << "\n";
+    << "  final terms: S(p) = " << smoothness_term << ", landmark misfit^2 = " << landmark_term
+    << ", E_a = " << attachment_term << ", E = " << elastic_term
+    << ", |grad|_inf = " << final_gradient_norm << "\n";
   return o.str();
 }
 
@@ -226,13 +394,13 @@ bool solve_equilibrium(const PlasticBar1D& bar, const Eigen::VectorXd& s, Eigen:
 }
 
 struct Terms {
-  double laplacian = 0, landmark = 0, attachment = 0, max_landmark_error = 0;
+  double smoothness = 0, landmark = 0, attachment = 0, max_landmark_error = 0;
 };
 
 Terms evaluate_terms(const PlasticBar1D& bar, const Eigen::MatrixXd& L, const Eigen::VectorXd& x,
                      const Eigen::VectorXd& s) {
   Terms t;
-  t.laplacian = (L * s).squaredNorm();
+  t.smoothness = (L * s).squaredNorm();
   for (size_t l = 0; l < bar.landmark_nodes().size(); ++l) {
     const double r = x[bar.landmark_nodes()[l]] - bar.setup().landmark_target[l];
     t.landmark += r * r;
@@ -243,7 +411,75 @@ Terms evaluate_terms(const PlasticBar1D& bar, const Eigen::MatrixXd& L, const Ei
 }
 
 double objective(const Terms& t, const Plastic1DOptions& o) {
-  return t.laplacian + o.alpha * t.landmark + o.beta * t.attachment;
+  return t.smoothness + o.alpha * t.landmark + o.beta * t.attachment;
+}
+
+/// Eq. 26 by Levenberg–Marquardt on Φ(p) = ‖r(p)‖² with the exact Jacobian (x(p) is explicit).
+Plastic1DResult solve_paper_quadratic(const Plastic1DOptions& o, const Plastic1DSetup& setup,
+                                      Clock::time_point t0) {
+  Plastic1DResult result;
+  Plastic1DSummary& sum = result.summary;
+  const int n = o.num_elements;
+  const PaperQuadraticBar1D bar(n, setup);
+  const auto eval = [&](const Eigen::VectorXd& p) {
+    return bar.residuals(p, o.alpha, o.beta, o.smoothness);
+  };
+  result.X = Eigen::VectorXd::LinSpaced(n + 1, 0.0, 1.0);
+  Eigen::VectorXd& p = result.s;
+  p = Eigen::VectorXd::Ones(n);
+  Eigen::VectorXd r = eval(p);
+  double phi = r.squaredNorm();
+  sum.initial_objective = phi;
+  sum.status = Plastic1DStatus::kMaxIterations;
+  double lambda = 1e-3;
+  Eigen::MatrixXd Jr = bar.residual_jacobian(p, o.alpha, o.beta, o.smoothness);
+  for (int it = 0; it < o.max_iterations; ++it) {
+    const Eigen::VectorXd half_gradient = Jr.transpose() * r;
+    sum.final_gradient_norm = 2.0 * half_gradient.lpNorm<Eigen::Infinity>();
+    if (sum.final_gradient_norm <= o.gradient_tolerance * std::max(1.0, phi)) {
+      sum.status = Plastic1DStatus::kConverged;
+      break;
+    }
+    ++sum.iterations;
+    const Eigen::MatrixXd H = Jr.transpose() * Jr;
+    const double floor = 1e-12 * std::max(1.0, H.diagonal().maxCoeff());
+    bool accepted = false;
+    for (int k = 0; k < 60; ++k) {  // raise the damping until Φ decreases
+      Eigen::MatrixXd A = H;
+      A.diagonal() += lambda * H.diagonal().cwiseMax(floor);
+      const Eigen::VectorXd p_try = p + A.ldlt().solve(-half_gradient);
+      const Eigen::VectorXd r_try = eval(p_try);
+      const double phi_try = r_try.squaredNorm();
+      if (std::isfinite(phi_try) && phi_try < phi) {
+        p = p_try;
+        r = r_try;
+        phi = phi_try;
+        accepted = true;
+        lambda = std::max(lambda / 3.0, 1e-15);
+        break;
+      }
+      lambda *= 4.0;
+    }
+    if (!accepted) {  // no damped step decreases Φ: round-off level when the gradient is small
+      sum.status = sum.final_gradient_norm <= 100.0 * o.gradient_tolerance * std::max(1.0, phi)
+                       ? Plastic1DStatus::kConverged
+                       : Plastic1DStatus::kLineSearchFailed;
+      break;
+    }
+    Jr = bar.residual_jacobian(p, o.alpha, o.beta, o.smoothness);
+  }
+  result.x = bar.positions(p);
+  const Eigen::MatrixXd W = smoothness_matrix(n, o.smoothness);
+  sum.final_objective = phi;
+  sum.smoothness_term = (W * p).squaredNorm();
+  sum.elastic_term = bar.equilibrium_elastic_energy(p);
+  for (size_t l = 0; l < bar.landmark_nodes().size(); ++l) {
+    const double e = result.x[bar.landmark_nodes()[l]] - setup.landmark_target[l];
+    sum.landmark_term += e * e;
+    sum.max_landmark_error = std::max(sum.max_landmark_error, std::abs(e));
+  }
+  sum.seconds = seconds_since(t0);
+  return result;
 }
 
 }  // namespace
@@ -256,9 +492,16 @@ Plastic1DResult solve_plastic_1d(const Plastic1DOptions& o, const Plastic1DSetup
     sum.message = *msg;
     return result;
   }
+  if (o.model == Plastic1DModel::kPaperQuadratic) {
+    if (auto msg = paper_setup_error(setup)) {
+      sum.message = *msg;
+      return result;
+    }
+    return solve_paper_quadratic(o, setup, t0);
+  }
   const int n = o.num_elements;
   const PlasticBar1D bar(n, o.psi, o.attachment_stiffness, setup);
-  const Eigen::MatrixXd L = bar.plastic_strain_laplacian();
+  const Eigen::MatrixXd L = smoothness_matrix(n, o.smoothness);
   result.X = Eigen::VectorXd::LinSpaced(n + 1, 0.0, 1.0);
   result.s = Eigen::VectorXd::Ones(n);
   result.x = result.X;
@@ -332,7 +575,7 @@ Plastic1DResult solve_plastic_1d(const Plastic1DOptions& o, const Plastic1DSetup
     if (sum.status != Plastic1DStatus::kMaxIterations) break;
   }
   sum.final_objective = phi;
-  sum.laplacian_term = terms.laplacian;
+  sum.smoothness_term = terms.smoothness;
   sum.landmark_term = terms.landmark;
   sum.attachment_term = terms.attachment;
   sum.max_landmark_error = terms.max_landmark_error;
@@ -396,6 +639,139 @@ double fitted_slope(const Eigen::VectorXd& X, const Eigen::VectorXd& x, double a
     ++m;
   }
   return (m * sxy - sx * sy) / (m * sxx - sx * sx);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fig. 23 metrics and the comparison table.
+
+double Fig23Metrics::max_relative_fitted_slope_error() const {
+  double e = 0.0;
+  for (size_t k = 0; k < fitted_slope.size(); ++k)
+    e = std::max(e, std::abs(fitted_slope[k] / target_slope[k] - 1.0));
+  return e;
+}
+
+Fig23Metrics measure_fig23(const Eigen::VectorXd& X, const Eigen::VectorXd& x,
+                           const Plastic1DSetup& setup, double margin) {
+  Fig23Metrics m;
+  const int n = static_cast<int>(X.size()) - 1;
+  std::vector<std::pair<double, double>> points;  // (material X, target position)
+  for (size_t a = 0; a < setup.attachment_X.size(); ++a)
+    points.emplace_back(setup.attachment_X[a], setup.attachment_target[a]);
+  for (size_t l = 0; l < setup.landmark_X.size(); ++l)
+    points.emplace_back(setup.landmark_X[l], setup.landmark_target[l]);
+  std::sort(points.begin(), points.end());
+  for (size_t k = 0; k < points.size(); ++k) {
+    m.bounds.push_back(points[k].first);
+    if (k == 0) continue;
+    const double a = points[k - 1].first, b = points[k].first;
+    const int ia = nearest_node(a, n), ib = nearest_node(b, n);
+    m.target_slope.push_back((points[k].second - points[k - 1].second) / (b - a));
+    m.chord_slope.push_back((x[ib] - x[ia]) / (X[ib] - X[ia]));
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int count = 0;
+    for (int i = ia; i <= ib; ++i) {
+      if (X[i] < a + margin - 1e-12 || X[i] > b - margin + 1e-12) continue;
+      sx += X[i];
+      sy += x[i];
+      sxx += X[i] * X[i];
+      sxy += X[i] * x[i];
+      ++count;
+    }
+    m.fitted_slope.push_back((count * sxy - sx * sy) / (count * sxx - sx * sx));
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int e = ia; e < ib; ++e) {
+      const double slope = (x[e + 1] - x[e]) / (X[e + 1] - X[e]);
+      lo = std::min(lo, slope);
+      hi = std::max(hi, slope);
+    }
+    m.min_local_slope.push_back(lo);
+    m.max_local_slope.push_back(hi);
+  }
+  for (size_t l = 0; l < setup.landmark_X.size(); ++l)
+    m.max_landmark_error =
+        std::max(m.max_landmark_error,
+                 std::abs(x[nearest_node(setup.landmark_X[l], n)] - setup.landmark_target[l]));
+  m.min_x = x.minCoeff();
+  m.max_x = x.maxCoeff();
+  m.monotone = true;
+  for (int e = 0; e < n; ++e) m.monotone = m.monotone && x[e + 1] >= x[e];
+  const auto [t_lo, t_hi] =
+      std::minmax_element(setup.attachment_target.begin(), setup.attachment_target.end());
+  m.overshoot = std::max({0.0, *t_lo - m.min_x, m.max_x - *t_hi});
+  return m;
+}
+
+std::vector<Fig23Row> fig23_table(const Plastic1DOptions& options,
+                                  const std::vector<double>& alphas,
+                                  const std::vector<double>& betas,
+                                  const std::vector<int>& element_counts, double margin) {
+  const Plastic1DSetup setup{};
+  std::vector<Fig23Row> rows;
+  for (int n : element_counts) {
+    const Eigen::VectorXd X = Eigen::VectorXd::LinSpaced(n + 1, 0.0, 1.0);
+    for (double beta : betas)
+      for (double alpha : alphas) {
+        Plastic1DOptions o = options;
+        o.num_elements = n;
+        o.alpha = alpha;
+        o.beta = beta;
+        const Plastic1DResult r = solve_plastic_1d(o, setup);
+        Fig23Row row{"plastic", 0, alpha, beta, n, to_string(r.summary.status), 0.0, 0.0, {}};
+        if (r.x.size() == n + 1) {
+          row.min_fp = r.s.minCoeff();
+          row.max_fp = r.s.maxCoeff();
+          row.metrics = measure_fig23(X, r.x, setup, margin);
+        }
+        rows.push_back(row);
+      }
+    for (int order = 1; order <= 3; ++order)
+      for (double alpha : alphas) {
+        Variational1DOptions vo;
+        vo.num_elements = n;
+        vo.order = order;
+        vo.alpha = alpha;
+        const auto x = solve_variational_1d(vo, setup);
+        Fig23Row row{"variational r=" + std::to_string(order), order, alpha, 0.0, n,
+                     x ? "solved" : "invalid options",         0.0,   0.0,   {}};
+        if (x) row.metrics = measure_fig23(X, *x, setup, margin);
+        rows.push_back(row);
+      }
+  }
+  return rows;
+}
+
+std::string format_fig23_table(const std::vector<Fig23Row>& rows) {
+  std::ostringstream o;
+  char line[512];
+  std::snprintf(line, sizeof line, "%-16s %7s %7s %4s | %-20s | %-20s | %-38s | %8s %4s %7s %s\n",
+                "method", "alpha", "beta", "N", "chord slopes", "fitted slopes",
+                "local slope range per subinterval", "lm err", "mono", "oversh", "status");
+  o << line;
+  for (const Fig23Row& r : rows) {
+    const Fig23Metrics& m = r.metrics;
+    if (m.fitted_slope.size() != 3) {
+      o << r.method << " alpha " << r.alpha << " beta " << r.beta << " N " << r.num_elements << ": "
+        << r.status << "\n";
+      continue;
+    }
+    std::snprintf(line, sizeof line,
+                  "%-16s %7.0e %7.0e %4d | %6.3f %6.3f %6.3f | %6.3f %6.3f %6.3f | "
+                  "[%5.2f,%5.2f] [%5.2f,%5.2f] [%5.2f,%5.2f] | %8.1e %4s %7.4f %s",
+                  r.method.c_str(), r.alpha, r.beta, r.num_elements, m.chord_slope[0],
+                  m.chord_slope[1], m.chord_slope[2], m.fitted_slope[0], m.fitted_slope[1],
+                  m.fitted_slope[2], m.min_local_slope[0], m.max_local_slope[0],
+                  m.min_local_slope[1], m.max_local_slope[1], m.min_local_slope[2],
+                  m.max_local_slope[2], m.max_landmark_error, m.monotone ? "yes" : "no",
+                  m.overshoot, r.status.c_str());
+    o << line;
+    if (r.order == 0) {
+      std::snprintf(line, sizeof line, " fp[%.3f,%.3f]", r.min_fp, r.max_fp);
+      o << line;
+    }
+    o << "\n";
+  }
+  return o.str();
 }
 
 }  // namespace sinew::offline::experiments

@@ -22,34 +22,14 @@
 #include "offline/plastic_elastic_energy.hpp"
 #include "offline/plastic_strain.hpp"
 #include "tests/support/finite_difference.hpp"
+#include "tests/support/offline_fixtures.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
 
 namespace sinew::offline {
 namespace {
 
-common::StableNeoHookean soft_tissue() {
-  common::StableNeoHookeanParameters p;
-  p.youngs_modulus = 1e4;
-  p.poisson_ratio = 0.4;
-  return *common::StableNeoHookean::create(p);
-}
-
-// An embedded point at vertex v: the first tet that has v, weight 1 on it.
-EmbeddedPoint at_vertex(const common::TetIndices& tets, int v) {
-  for (Eigen::Index t = 0; t < tets.rows(); ++t) {
-    for (int a = 0; a < 4; ++a) {
-      if (tets(t, a) == v) {
-        EmbeddedPoint p;
-        p.tet = t;
-        p.weights = Eigen::Vector4d::Zero();
-        p.weights[a] = 1.0;
-        return p;
-      }
-    }
-  }
-  ADD_FAILURE() << "vertex " << v << " is in no tet";
-  return {};
-}
+using testing::at_vertex;
+using testing::soft_tissue;
 
 struct Scene {
   testing::TetMesh mesh;

@@ -1,0 +1,625 @@
+#include "offline/gauss_newton.hpp"
+
+#include <nlopt.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <utility>
+
+#include "offline/plastic_strain_laplacian.hpp"
+
+namespace sinew::offline {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::string invalid(const char* field, double value, const char* constraint) {
+  std::ostringstream out;
+  out << field << " = " << value << " " << constraint;
+  return out.str();
+}
+
+// Rest positions (#V by 3) from the 3n dof vector.
+Eigen::MatrixXd rest_matrix(const PlasticElasticEnergy& energy) {
+  const Eigen::VectorXd& dofs = energy.rest_dofs();
+  Eigen::MatrixXd V(energy.num_vertices(), 3);
+  for (Eigen::Index v = 0; v < V.rows(); ++v) V.row(v) = dofs.segment<3>(3 * v).transpose();
+  return V;
+}
+
+// The state of one registration run: the solvers built once, and the current (s, x).
+class Registration {
+ public:
+  Registration(PlasticElasticEnergy energy, const PointConstraints& springs,
+               EquilibriumSolver equilibrium, WoodburySolver woodbury,
+               Eigen::SparseMatrix<double> laplacian, const RegistrationConstraints& constraints,
+               ClosestSurfacePoint* closest_point, const GaussNewtonOptions& options)
+      : energy_(std::move(energy)),
+        springs_(springs),
+        equilibrium_(std::move(equilibrium)),
+        woodbury_(std::move(woodbury)),
+        laplacian_(std::move(laplacian)),
+        constraints_(constraints),
+        closest_point_(closest_point),
+        options_(options) {}
+
+  Eigen::VectorXd s;
+  Eigen::VectorXd x;
+  int equilibrium_solves = 0;
+
+  // Solves the equilibrium for plastic state s_trial from x_trial (in/out); true when converged.
+  bool solve_equilibrium(const Eigen::VectorXd& s_trial, Eigen::VectorXd& x_trial) {
+    ++equilibrium_solves;
+    const EquilibriumSummary summary = equilibrium_.solve(s_trial, x_trial);
+    return summary.converged();
+  }
+
+  // The objective constraints of a stage at positions x (ICP closest points found at x).
+  std::optional<PointConstraints> objective_constraints(RegistrationStage stage,
+                                                        const Eigen::VectorXd& at,
+                                                        std::string* why) {
+    std::vector<PointConstraint> list;
+    if (options_.beta > 0.0) {
+      for (PointConstraint c : constraints_.attachments) {
+        c.weight = options_.beta;
+        list.push_back(c);
+      }
+    }
+    const bool landmarks =
+        stage == RegistrationStage::kLandmarks ||
+        (stage == RegistrationStage::kInitialFit && !constraints_.landmarks.empty());
+    const bool icp = stage == RegistrationStage::kIcpMarkers ||
+                     (stage == RegistrationStage::kInitialFit && constraints_.landmarks.empty());
+    if (landmarks) {
+      for (PointConstraint c : constraints_.landmarks) {
+        c.weight *= options_.alpha;
+        list.push_back(c);
+      }
+    }
+    if (icp && !constraints_.icp_markers.empty()) {
+      closest_point_->update(at);
+      for (const Eigen::Vector3d& z : constraints_.icp_markers) {
+        PointConstraint c;
+        c.kind = ConstraintKind::kIcpMarker;
+        c.point = closest_point_->closest(z);
+        c.target = z;
+        c.weight = options_.alpha;
+        list.push_back(c);
+      }
+    }
+    ConstraintCheck check;
+    auto set = PointConstraints::create(energy_.num_vertices(), energy_.tets(), std::move(list),
+                                        common::PatternStorage::kFull, &check);
+    if (!set && why != nullptr) *why = "objective constraints: " + check.message();
+    return set;
+  }
+
+  double objective(const Eigen::VectorXd& s_at, const Eigen::VectorXd& x_at,
+                   const PointConstraints& terms) const {
+    // ½‖L s‖² as ½ sᵀ(L(Ls))-free sum (GCC's -Wnull-dereference misfires on squaredNorm here).
+    const Eigen::VectorXd Ls = laplacian_ * s_at;
+    double sum = 0.0;
+    for (Eigen::Index i = 0; i < Ls.size(); ++i) sum += Ls[i] * Ls[i];
+    return 0.5 * sum + terms.energy(x_at);
+  }
+
+  // Marker misfit of a stage at x (fresh closest points for ICP markers): mean and max, metres.
+  std::pair<double, double> marker_errors(RegistrationStage stage, const Eigen::VectorXd& at) {
+    std::vector<double> errors;
+    if (stage == RegistrationStage::kIcpMarkers) {
+      closest_point_->update(at);
+      for (const Eigen::Vector3d& z : constraints_.icp_markers) {
+        const EmbeddedPoint p = closest_point_->closest(z);
+        errors.push_back((embedded_position(energy_.tets(), p, at) - z).norm());
+      }
+    } else {
+      const auto& list = stage == RegistrationStage::kLandmarks ? constraints_.landmarks
+                                                                : constraints_.attachments;
+      for (const PointConstraint& c : list) {
+        errors.push_back((embedded_position(energy_.tets(), c.point, at) - c.target).norm());
+      }
+    }
+    if (errors.empty()) return {0.0, 0.0};
+    double sum = 0.0, largest = 0.0;
+    for (double e : errors) {
+      sum += e;
+      largest = std::max(largest, e);
+    }
+    return {sum / static_cast<double>(errors.size()), largest};
+  }
+
+  // The Gauss–Newton direction at (s, x) for the objective terms (eqs. 10–14).
+  bool direction(const PointConstraints& terms, Eigen::VectorXd& step, GaussNewtonIteration& record,
+                 std::string* why) {
+    Clock::time_point start = Clock::now();
+    PlasticEnergyRequest request;
+    request.energy = false;
+    request.stiffness = true;
+    request.force_jacobian = true;
+    const PlasticEvaluation evaluation = energy_.evaluate(s, x, request);
+    if (!evaluation.valid()) {
+      *why = "tangent stiffness: " + evaluation.message();
+      return false;
+    }
+    // ∂f_net/∂x = K + Σ_attachments c A_kᵀA_k.
+    const Eigen::SparseMatrix<double> tangent = energy_.stiffness() + springs_.hessian();
+    SparseCholeskyStatus status =
+        tangent_.analysed() ? tangent_.factorise(tangent) : SparseCholeskyStatus::kPatternMismatch;
+    if (status == SparseCholeskyStatus::kPatternMismatch) status = tangent_.compute(tangent);
+    if (status != SparseCholeskyStatus::kOk) {
+      *why = std::string("tangent stiffness at the equilibrium: ") + to_string(status);
+      return false;
+    }
+    // Z = −(√c A) K⁻¹ ∂f/∂s, through W = K⁻¹ (√c A)ᵀ (3n x 3K, one block solve).
+    const Eigen::Index rows = 3 * terms.size();
+    Eigen::VectorXd sqrt_c(rows);
+    Eigen::VectorXd residual(rows);
+    for (Eigen::Index k = 0; k < terms.size(); ++k) {
+      const double root = std::sqrt(terms.weight(k));
+      sqrt_c.segment<3>(3 * k).setConstant(root);
+      residual.segment<3>(3 * k) = root * terms.residual(k, x);
+    }
+    const Eigen::SparseMatrix<double> weighted_rows =
+        sqrt_c.asDiagonal() * terms.stacked_selection();
+    const Eigen::MatrixXd rhs = Eigen::MatrixXd(weighted_rows.transpose());
+    Eigen::MatrixXd W(rhs.rows(), rhs.cols());
+    if (tangent_.solve(rhs, W) != SparseCholeskyStatus::kOk) {
+      *why = "tangent solve failed";
+      return false;
+    }
+    const Eigen::MatrixXd Zt = energy_.force_jacobian().transpose() * W;  // −Zᵀ, 6m x 3K
+    record.jacobian_seconds = seconds_since(start);
+
+    start = Clock::now();
+    // Gradient of eq. 8 at Δs = 0: L²s + Zᵀr = L(Ls) − Zt·r.
+    const Eigen::VectorXd Ls = laplacian_ * s;
+    Eigen::VectorXd gradient = laplacian_ * Ls;
+    gradient.noalias() -= Zt * residual;
+    const Eigen::MatrixXd Z_psi =
+        Zt.transpose() * plastic_strain_laplacian_nullspace(energy_.num_tets());
+    const double damping = options_.nullspace_damping * Z_psi.squaredNorm() / 6.0 + 1e-12;
+    WoodburyStatus solved = woodbury_.set_constraint_rows(-Zt.transpose(), damping);
+    step.resize(s.size());
+    if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
+    record.woodbury_seconds = seconds_since(start);
+    if (solved != WoodburyStatus::kOk) {
+      *why = std::string("Woodbury solve: ") + to_string(solved);
+      return false;
+    }
+    return true;
+  }
+
+  const PlasticElasticEnergy& energy() const { return energy_; }
+  const RegistrationConstraints& constraints() const { return constraints_; }
+  const Eigen::SparseMatrix<double>& laplacian() const { return laplacian_; }
+
+ private:
+  PlasticElasticEnergy energy_;
+  // The attachment springs; the equilibrium solver keeps a pointer to the same object.
+  const PointConstraints& springs_;
+  EquilibriumSolver equilibrium_;
+  WoodburySolver woodbury_;
+  Eigen::SparseMatrix<double> laplacian_;
+  SparseCholesky tangent_;
+  const RegistrationConstraints& constraints_;
+  ClosestSurfacePoint* closest_point_;
+  GaussNewtonOptions options_;
+};
+
+// NLopt's C callback for the constant-s fit.
+struct ConstantFitData {
+  Registration* registration;
+  RegistrationStage stage;
+  Eigen::VectorXd best_x;
+  double best_value = kInfinity;
+  Eigen::Matrix<double, 6, 1> best_a;
+  int evaluations = 0;
+};
+
+double constant_fit_objective(unsigned n, const double* a, double* /*gradient*/, void* data) {
+  auto* fit = static_cast<ConstantFitData*>(data);
+  Registration& r = *fit->registration;
+  ++fit->evaluations;
+  const Eigen::Map<const Eigen::Matrix<double, 6, 1>> a6(a, n);
+  const Eigen::Index m = r.energy().num_tets();
+  Eigen::VectorXd s_trial(6 * m);
+  for (Eigen::Index t = 0; t < m; ++t) s_trial.segment<6>(6 * t) = a6;
+  if (clamp_plastic_state_eigenvalues(s_trial).clamped_tets > 0) return 1e300;
+  Eigen::VectorXd x_trial = fit->best_x;
+  if (!r.solve_equilibrium(s_trial, x_trial)) return 1e300;
+  // Fresh closest points: this is the true ICP distance for the constant strain.
+  auto terms = r.objective_constraints(fit->stage, x_trial, nullptr);
+  if (!terms) return 1e300;
+  const double value = r.objective(s_trial, x_trial, *terms);
+  if (std::isfinite(value) && value < fit->best_value) {
+    fit->best_value = value;
+    fit->best_x = x_trial;
+    fit->best_a = a6;
+  }
+  return std::isfinite(value) ? value : 1e300;
+}
+
+}  // namespace
+
+const char* to_string(RegistrationStage stage) {
+  switch (stage) {
+    case RegistrationStage::kInitialFit:
+      return "initial-fit";
+    case RegistrationStage::kAttachments:
+      return "attachments";
+    case RegistrationStage::kLandmarks:
+      return "landmarks";
+    case RegistrationStage::kIcpMarkers:
+      return "icp";
+  }
+  return "unknown";
+}
+
+const char* to_string(GaussNewtonTermination termination) {
+  switch (termination) {
+    case GaussNewtonTermination::kMaxIterations:
+      return "max-iterations";
+    case GaussNewtonTermination::kMarkerTolerance:
+      return "marker-tolerance";
+    case GaussNewtonTermination::kSmallStep:
+      return "small-step";
+    case GaussNewtonTermination::kSmallDecrease:
+      return "small-decrease";
+    case GaussNewtonTermination::kLineSearchFailed:
+      return "line-search-failed";
+    case GaussNewtonTermination::kEquilibriumFailed:
+      return "equilibrium-failed";
+    case GaussNewtonTermination::kLinearSolveFailed:
+      return "linear-solve-failed";
+    case GaussNewtonTermination::kInvalidInput:
+      return "invalid-input";
+  }
+  return "unknown";
+}
+
+std::optional<std::string> GaussNewtonOptions::validate() const {
+  if (!(alpha > 0.0 && std::isfinite(alpha))) return invalid("alpha", alpha, "must be > 0");
+  if (!(beta >= 0.0 && std::isfinite(beta))) return invalid("beta", beta, "must be >= 0");
+  if (max_iterations_per_stage < 0) {
+    return invalid("max_iterations_per_stage", max_iterations_per_stage, "must be >= 0");
+  }
+  if (!(max_marker_error >= 0.0)) {
+    return invalid("max_marker_error", max_marker_error, "must be >= 0");
+  }
+  if (!(min_step >= 0.0 && min_step < 1.0))
+    return invalid("min_step", min_step, "must be in [0, 1)");
+  if (!(max_step > 0.0 && max_step <= 4.0)) {
+    return invalid("max_step", max_step, "must be in (0, 4]");
+  }
+  if (!(relative_decrease_tolerance >= 0.0 && relative_decrease_tolerance < 1.0)) {
+    return invalid("relative_decrease_tolerance", relative_decrease_tolerance, "must be in [0, 1)");
+  }
+  if (line_search_evaluations < 3) {
+    return invalid("line_search_evaluations", line_search_evaluations, "must be >= 3");
+  }
+  if (!(line_search_tolerance > 0.0 && line_search_tolerance < 0.5)) {
+    return invalid("line_search_tolerance", line_search_tolerance, "must be in (0, 0.5)");
+  }
+  if (initial_fit_evaluations < 10) {
+    return invalid("initial_fit_evaluations", initial_fit_evaluations, "must be >= 10");
+  }
+  if (!(nullspace_damping >= 0.0 && std::isfinite(nullspace_damping))) {
+    return invalid("nullspace_damping", nullspace_damping, "must be >= 0");
+  }
+  if (!(eigenvalue_floor > 0.0 && std::isfinite(eigenvalue_floor))) {
+    return invalid("eigenvalue_floor", eigenvalue_floor, "must be > 0");
+  }
+  if (auto message = equilibrium.validate()) return "equilibrium." + *message;
+  if (auto message = woodbury.validate()) return "woodbury." + *message;
+  return std::nullopt;
+}
+
+std::string GaussNewtonSummary::brief_report() const {
+  std::ostringstream out;
+  out << "Gauss-Newton: " << to_string(termination) << ", " << iterations.size()
+      << " iterations, objective " << initial_objective << " -> " << final_objective
+      << ", marker error mean " << marker_error_mean << " max " << marker_error_max << ", "
+      << equilibrium_solves << " equilibrium solves, " << seconds << " s";
+  if (!message.empty()) out << " (" << message << ")";
+  return out.str();
+}
+
+std::string GaussNewtonSummary::full_report() const {
+  std::ostringstream out;
+  out << brief_report() << "\n";
+  out << "stage        it  objective      step    err_mean     err_max      solves  seconds\n";
+  for (const GaussNewtonIteration& it : iterations) {
+    out << to_string(it.stage) << "  " << it.iteration << "  " << it.objective << "  " << it.step
+        << "  " << it.marker_error_mean << "  " << it.marker_error_max << "  "
+        << it.equilibrium_solves << "  " << it.seconds << "\n";
+  }
+  return out.str();
+}
+
+BrentResult brent_minimise(const std::function<double(double)>& f, double a, double b,
+                           double tolerance, int max_evaluations) {
+  // Brent (1973), "Algorithms for minimization without derivatives", ch. 5: keep the best three
+  // points (x ≤ w ≤ v by value), try a parabola through them, fall back to golden section.
+  const double golden = 0.5 * (3.0 - std::sqrt(5.0));
+  const double absolute_tolerance = tolerance * (b - a);
+  BrentResult result;
+  auto eval = [&](double t) {
+    ++result.evaluations;
+    const double value = f(t);
+    return std::isfinite(value) ? value : std::numeric_limits<double>::max();
+  };
+  double x = a + golden * (b - a), w = x, v = x;
+  double fx = eval(x), fw = fx, fv = fx;
+  double d = 0.0, e = 0.0;
+  while (result.evaluations < max_evaluations) {
+    const double middle = 0.5 * (a + b);
+    const double tol1 = absolute_tolerance + 1e-10 * std::abs(x);
+    const double tol2 = 2.0 * tol1;
+    if (std::abs(x - middle) <= tol2 - 0.5 * (b - a)) break;
+    bool golden_step = true;
+    if (std::abs(e) > tol1) {
+      double r = (x - w) * (fx - fv);
+      double q = (x - v) * (fx - fw);
+      double p = (x - v) * q - (x - w) * r;
+      q = 2.0 * (q - r);
+      if (q > 0.0) p = -p;
+      q = std::abs(q);
+      const double e_previous = e;
+      e = d;
+      if (std::abs(p) < std::abs(0.5 * q * e_previous) && p > q * (a - x) && p < q * (b - x)) {
+        d = p / q;
+        const double u = x + d;
+        if (u - a < tol2 || b - u < tol2) d = x < middle ? tol1 : -tol1;
+        golden_step = false;
+      }
+    }
+    if (golden_step) {
+      e = (x < middle) ? b - x : a - x;
+      d = golden * e;
+    }
+    const double u = std::abs(d) >= tol1 ? x + d : x + (d > 0 ? tol1 : -tol1);
+    const double fu = eval(u);
+    if (fu <= fx) {
+      (u < x ? b : a) = x;
+      v = w, fv = fw;
+      w = x, fw = fx;
+      x = u, fx = fu;
+    } else {
+      (u < x ? a : b) = u;
+      if (fu <= fw || w == x) {
+        v = w, fv = fw;
+        w = u, fw = fu;
+      } else if (fu <= fv || v == x || v == w) {
+        v = u, fv = fu;
+      }
+    }
+  }
+  result.x = x;
+  result.value = fx;
+  return result;
+}
+
+RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
+                                     const RegistrationConstraints& constraints,
+                                     ClosestSurfacePoint* closest_point,
+                                     const GaussNewtonOptions& options,
+                                     const GaussNewtonProgress& progress) {
+  const Clock::time_point run_start = Clock::now();
+  RegistrationResult result;
+  result.s = identity_plastic_strains(energy_in.num_tets());
+  result.x = energy_in.rest_dofs();
+  GaussNewtonSummary& summary = result.summary;
+  auto fail = [&](GaussNewtonTermination termination, const std::string& message) {
+    summary.termination = termination;
+    summary.message = message;
+    summary.seconds = seconds_since(run_start);
+    return result;
+  };
+  if (auto message = options.validate()) {
+    return fail(GaussNewtonTermination::kInvalidInput, "GaussNewtonOptions: " + *message);
+  }
+  if (constraints.attachments.empty()) {
+    return fail(GaussNewtonTermination::kInvalidInput,
+                "no attachments: an attached object needs attachments (free objects are not "
+                "supported by register_attached)");
+  }
+  if (!constraints.icp_markers.empty() && closest_point == nullptr) {
+    return fail(GaussNewtonTermination::kInvalidInput,
+                "ICP markers given without a closest-point "
+                "structure");
+  }
+  // Exact stiffness in full storage for the Jacobian (eq. 10).
+  PlasticElasticEnergyOptions exact_options;
+  exact_options.projection = common::HessianProjection::kNone;
+  exact_options.storage = common::PatternStorage::kFull;
+  auto energy = PlasticElasticEnergy::create(rest_matrix(energy_in), energy_in.tets(),
+                                             energy_in.material(), exact_options);
+  if (!energy) return fail(GaussNewtonTermination::kInvalidInput, "tet mesh rejected");
+  ConstraintCheck check;
+  auto springs =
+      PointConstraints::create(energy->num_vertices(), energy->tets(), constraints.attachments,
+                               common::PatternStorage::kFull, &check);
+  if (!springs)
+    return fail(GaussNewtonTermination::kInvalidInput, "attachments: " + check.message());
+  std::string error;
+  auto equilibrium = EquilibriumSolver::create(*energy, *springs, options.equilibrium, &error);
+  if (!equilibrium) return fail(GaussNewtonTermination::kInvalidInput, error);
+  const PlasticStrainLaplacian laplacian = make_plastic_strain_laplacian(energy->tets());
+  auto woodbury =
+      WoodburySolver::create(laplacian.adjacency, energy->num_tets(), options.woodbury, &error);
+  if (!woodbury) return fail(GaussNewtonTermination::kInvalidInput, error);
+
+  Registration r(std::move(*energy), *springs, std::move(*equilibrium), std::move(*woodbury),
+                 laplacian.matrix, constraints, closest_point, options);
+  r.s = result.s;
+  r.x = result.x;
+  // The springs pull the template to the attachment targets first.
+  if (!r.solve_equilibrium(r.s, r.x)) {
+    return fail(GaussNewtonTermination::kEquilibriumFailed,
+                "no static equilibrium of the template under the attachments");
+  }
+
+  std::vector<RegistrationStage> stages{RegistrationStage::kAttachments};
+  if (!constraints.landmarks.empty()) stages.push_back(RegistrationStage::kLandmarks);
+  if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
+  const RegistrationStage final_stage = stages.back();
+  {
+    auto terms = r.objective_constraints(final_stage, r.x, &error);
+    if (!terms) return fail(GaussNewtonTermination::kInvalidInput, error);
+    summary.initial_objective = r.objective(r.s, r.x, *terms);
+  }
+
+  // §3.4 "Initial guess": one constant s for all tets (NLopt BOBYQA over its 6 entries).
+  if (options.initial_constant_fit) {
+    const Clock::time_point start = Clock::now();
+    const int solves_before = r.equilibrium_solves;
+    ConstantFitData fit{&r,        RegistrationStage::kInitialFit, r.x,
+                        kInfinity, identity_plastic_strain(),      0};
+    std::vector<double> a(6);
+    for (int i = 0; i < 6; ++i) a[static_cast<std::size_t>(i)] = identity_plastic_strain()[i];
+    const double start_value = constant_fit_objective(6, a.data(), nullptr, &fit);
+    nlopt::opt optimiser(nlopt::LN_BOBYQA, 6);
+    std::vector<double> lower(6), upper(6);
+    for (int i = 0; i < 6; ++i) {
+      const bool diagonal = !is_off_diagonal_component(i);
+      lower[static_cast<std::size_t>(i)] = diagonal ? 0.05 : -5.0;
+      upper[static_cast<std::size_t>(i)] = diagonal ? 20.0 : 5.0;
+    }
+    optimiser.set_lower_bounds(lower);
+    optimiser.set_upper_bounds(upper);
+    optimiser.set_min_objective(constant_fit_objective, &fit);
+    optimiser.set_maxeval(options.initial_fit_evaluations);
+    optimiser.set_ftol_rel(1e-5);
+    optimiser.set_initial_step(0.05);
+    double value = 0.0;
+    try {
+      optimiser.optimize(a, value);
+    } catch (const std::exception&) {
+      // NLopt reports round-off limits and forced stops by exceptions; the best point is kept.
+    }
+    GaussNewtonIteration record;
+    record.stage = RegistrationStage::kInitialFit;
+    record.iteration = 1;
+    record.objective_before = start_value;
+    record.objective = start_value;
+    if (fit.best_value < start_value) {
+      for (Eigen::Index t = 0; t < r.energy().num_tets(); ++t) r.s.segment<6>(6 * t) = fit.best_a;
+      r.x = fit.best_x;
+      record.objective = fit.best_value;
+      record.step = 1.0;
+    }
+    std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(final_stage, r.x);
+    record.equilibrium_solves = r.equilibrium_solves - solves_before;
+    record.seconds = seconds_since(start);
+    summary.iterations.push_back(record);
+    if (progress) progress(record);
+  }
+
+  GaussNewtonTermination termination = GaussNewtonTermination::kMaxIterations;
+  Eigen::VectorXd step;
+  for (const RegistrationStage stage : stages) {
+    termination = GaussNewtonTermination::kMaxIterations;
+    for (int iteration = 1; iteration <= options.max_iterations_per_stage; ++iteration) {
+      const Clock::time_point start = Clock::now();
+      const int solves_before = r.equilibrium_solves;
+      GaussNewtonIteration record;
+      record.stage = stage;
+      record.iteration = iteration;
+      auto terms = r.objective_constraints(stage, r.x, &error);
+      if (!terms) return fail(GaussNewtonTermination::kInvalidInput, error);
+      const double before = r.objective(r.s, r.x, *terms);
+      record.objective_before = before;
+      // Nothing (left) to fit in this stage, e.g. attachments already met: Φ is round-off.
+      if (before <= 1e-12 * summary.initial_objective) {
+        termination = GaussNewtonTermination::kSmallDecrease;
+        break;
+      }
+      if (!r.direction(*terms, step, record, &error)) {
+        termination = GaussNewtonTermination::kLinearSolveFailed;
+        summary.message = error;
+        break;
+      }
+      // §3.4: keep Fp positive definite (eigenvalues ≥ floor), then search along the result.
+      Eigen::VectorXd target = r.s + step;
+      record.clamped_tets = static_cast<int>(
+          clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+      step = target - r.s;
+      const Clock::time_point search_start = Clock::now();
+      double best_value = before;
+      double best_eta = 0.0;
+      Eigen::VectorXd best_x = r.x;
+      auto phi = [&](double eta) {
+        const Eigen::VectorXd s_trial = r.s + eta * step;
+        Eigen::VectorXd x_trial = r.x;
+        // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0.
+        if (!r.solve_equilibrium(s_trial, x_trial)) return 1e300 * (1.0 + eta);
+        const double value = r.objective(s_trial, x_trial, *terms);
+        if (value < best_value) {
+          best_value = value;
+          best_eta = eta;
+          best_x = x_trial;
+        }
+        return value;
+      };
+      // The full step first (Gauss–Newton's natural guess), then Brent on [0, max_step].
+      phi(std::min(1.0, options.max_step));
+      brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
+                     options.line_search_evaluations - 1);
+      record.line_search_seconds = seconds_since(search_start);
+      record.equilibrium_solves = r.equilibrium_solves - solves_before;
+      if (best_eta <= 0.0) {
+        record.objective = before;
+        std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
+        record.seconds = seconds_since(start);
+        summary.iterations.push_back(record);
+        if (progress) progress(record);
+        termination = GaussNewtonTermination::kLineSearchFailed;
+        break;
+      }
+      r.s += best_eta * step;
+      r.x = best_x;
+      record.step = best_eta;
+      record.objective = best_value;
+      std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
+      record.seconds = seconds_since(start);
+      summary.iterations.push_back(record);
+      if (progress) progress(record);
+      if (stage == RegistrationStage::kIcpMarkers && options.max_marker_error > 0.0 &&
+          record.marker_error_max <= options.max_marker_error) {
+        termination = GaussNewtonTermination::kMarkerTolerance;
+        break;
+      }
+      if (best_eta < options.min_step) {
+        termination = GaussNewtonTermination::kSmallStep;
+        break;
+      }
+      if (before - best_value <= options.relative_decrease_tolerance * before) {
+        termination = GaussNewtonTermination::kSmallDecrease;
+        break;
+      }
+    }
+    if (termination == GaussNewtonTermination::kLinearSolveFailed) break;
+  }
+
+  result.s = r.s;
+  result.x = r.x;
+  {
+    auto terms = r.objective_constraints(final_stage, r.x, &error);
+    summary.final_objective = terms ? r.objective(r.s, r.x, *terms) : kInfinity;
+  }
+  std::tie(summary.marker_error_mean, summary.marker_error_max) = r.marker_errors(final_stage, r.x);
+  summary.termination = termination;
+  summary.equilibrium_solves = r.equilibrium_solves;
+  summary.seconds = seconds_since(run_start);
+  return result;
+}
+
+}  // namespace sinew::offline

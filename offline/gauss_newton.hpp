@@ -1,0 +1,189 @@
+#pragma once
+/// Plastic-strain registration of attached objects (seed 003, §3.3–3.4): find the plastic state s
+/// (6m) and its static equilibrium x (3n) minimising eq. 6,
+///   Φ(s, x) = ½‖L s‖² + Σ_k c_k/2 ‖A_k x + b_k‖²,   s.t. f_net(s, x) = f_e + f_a = 0 (eq. 7),
+/// by the paper's Gauss–Newton method:
+///  - per iteration, Z = −[√c_k A_k]·(∂f_net/∂x)⁻¹·∂f_net/∂s (eq. 12) from one
+///  multi-right-hand-side
+///    CHOLMOD solve with the tangent stiffness (J is never formed);
+///  - the step Δs solves H Δs = −(L²s + Zᵀr), H = L² + ZᵀZ (eq. 11), by the Woodbury identity
+///    (eqs. 13–14, offline/woodbury_solver.hpp);
+///  - Fp(s + Δs) is kept positive definite by clamping its eigenvalues at 0.01 (§3.4);
+///  - a line search over η ∈ [0, max_step] minimises Φ(s + ηΔs, x(η)), where every trial solves the
+///    equilibrium warm-started from the current x and a failed equilibrium scores +∞. The 1D
+///    minimiser is Brent's (golden section + parabolic interpolation), as in the paper;
+///  - initial guess: one constant s for all tets fitted first (NLopt BOBYQA over its 6 entries);
+///  - stages attachments → landmarks → ICP markers (§3.4): the output is computed with ICP markers
+///    only when there are any; closest points are recomputed before every ICP iteration, their
+///    barycentric coordinates frozen within it;
+///  - a stage stops on its iteration limit, on η below min_step, when the relative decrease of Φ is
+///    negligible, or (ICP stage) when the largest marker error is below max_marker_error.
+///
+/// Objective weights: attachments enter Φ with c_k = β (beta), landmarks and ICP markers with
+/// c_k = α·weight_k (alpha); the attachment springs of f_net keep their own stiffness (the
+/// PointConstraint::weight of each attachment), see §3.3.
+///
+/// Units: SI or any consistent system; the tools normalise the geometry first.
+#include <Eigen/Core>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "offline/constraints.hpp"
+#include "offline/equilibrium.hpp"
+#include "offline/plastic_elastic_energy.hpp"
+#include "offline/woodbury_solver.hpp"
+
+namespace sinew::offline {
+
+/// Closest point on the deformed boundary surface, embedded in the tet that owns that boundary
+/// face (frozen barycentric coordinates for one ICP iteration). Implemented with a CGAL AABB tree
+/// in offline/surface_closest_point.hpp; any implementation will do.
+class ClosestSurfacePoint {
+ public:
+  virtual ~ClosestSurfacePoint() = default;
+  /// Re-targets the structure to the positions x (3n, vertex-major).
+  virtual void update(const Eigen::Ref<const Eigen::VectorXd>& x) = 0;
+  /// The material point closest to query on the current surface.
+  virtual EmbeddedPoint closest(const Eigen::Vector3d& query) const = 0;
+};
+
+enum class RegistrationStage {
+  kInitialFit,   ///< the constant-s initial guess
+  kAttachments,  ///< attachments only
+  kLandmarks,    ///< attachments + landmarks
+  kIcpMarkers,   ///< attachments + ICP markers (landmarks off)
+};
+const char* to_string(RegistrationStage stage);
+
+struct GaussNewtonOptions {
+  /// Objective weight α of landmarks and ICP markers (eq. 3), per metre² of misfit, against the
+  /// dimensionless smoothness ½‖L s‖²; > 0. The paper used 1e9 on its meshes; on a 432-tet bar
+  /// (tests/offline/test_gauss_newton.cpp) 1e9 over-fits the landmarks with a rough field
+  /// (surface error 20% of the diagonal) while 1e3…1e7 all give 3–4%: 1e7 meets markers to ≲1 µm
+  /// per 10 cm and stays smooth.
+  double alpha = 1e7;
+  /// Objective weight β of the attachment energy (eq. 3); ≥ 0. The paper: α/10.
+  double beta = 1e6;
+  /// Gauss–Newton iterations per stage (the paper: typically 20, up to 80); ≥ 0.
+  int max_iterations_per_stage = 20;
+  /// ICP stage: stop when every marker is this close to the surface (metres; the paper: 1 mm for
+  /// hand muscles); ≥ 0 (0 disables).
+  double max_marker_error = 0.0;
+  /// A stage stops when the line search's best η is below this (the paper uses 0.01); in [0, 1).
+  double min_step = 0.01;
+  /// Largest η tried by the line search; η = 1 is the full Gauss–Newton step. In (0, 4].
+  double max_step = 1.0;
+  /// A stage stops when Φ decreased by less than this fraction in an iteration; in [0, 1).
+  double relative_decrease_tolerance = 1e-6;
+  /// Brent line search: evaluations (equilibrium solves) per iteration, ≥ 3; and the tolerance
+  /// on η, in (0, 0.5).
+  int line_search_evaluations = 12;
+  double line_search_tolerance = 0.02;
+  /// Fit one constant s to all tets before the Gauss–Newton stages (§3.4 "Initial guess").
+  bool initial_constant_fit = true;
+  /// Objective evaluations (equilibrium solves) of the constant fit, ≥ 10.
+  int initial_fit_evaluations = 80;
+  /// Levenberg damping of the six constant-strain modes (the nullspace of L), relative to
+  /// ‖ZΨ‖²/6, the constraints' own curvature along them; ≥ 0. H = L² + ZᵀZ is singular there when
+  /// the stage's constraints hardly see a uniform change of s (stiff attachments alone), and
+  /// δ = damping·‖ZΨ‖²/6 + 1e-12 keeps the Woodbury capacitance invertible.
+  double nullspace_damping = 1e-6;
+  /// Eigenvalue floor of Fp after each step (§3.4: 0.01); > 0.
+  double eigenvalue_floor = kDefaultEigenvalueFloor;
+  /// Equilibrium solves (line search, initial fit).
+  EquilibriumOptions equilibrium{};
+  WoodburySolverOptions woodbury{};
+  /// Empty when valid; otherwise one line naming the field, its value and the constraint.
+  std::optional<std::string> validate() const;
+};
+
+/// One row of the report: one Gauss–Newton iteration (or the initial fit).
+struct GaussNewtonIteration {
+  RegistrationStage stage = RegistrationStage::kAttachments;
+  int iteration = 0;              ///< within the stage, from 1
+  double objective = 0.0;         ///< Φ after the iteration
+  double objective_before = 0.0;  ///< Φ at its start (same constraints)
+  double step = 0.0;              ///< η taken (0: rejected)
+  /// Misfit of the stage's markers after the iteration (landmarks or ICP markers; attachments in
+  /// the attachment stage), metres.
+  double marker_error_mean = 0.0;
+  double marker_error_max = 0.0;
+  int equilibrium_solves = 0;
+  int clamped_tets = 0;           ///< tets whose Fp eigenvalues were clamped
+  double jacobian_seconds = 0.0;  ///< tangent factorisation + Z
+  double woodbury_seconds = 0.0;  ///< H solve
+  double line_search_seconds = 0.0;
+  double seconds = 0.0;  ///< whole iteration
+};
+
+enum class GaussNewtonTermination {
+  kMaxIterations,      ///< the last stage hit its iteration limit
+  kMarkerTolerance,    ///< every ICP marker within max_marker_error
+  kSmallStep,          ///< η below min_step
+  kSmallDecrease,      ///< relative decrease below tolerance
+  kLineSearchFailed,   ///< no η in (0, max_step] decreased Φ
+  kEquilibriumFailed,  ///< the equilibrium at the start could not be solved
+  kLinearSolveFailed,  ///< tangent stiffness not positive definite, or Woodbury failed
+  kInvalidInput,       ///< options, sizes, constraints (see message)
+};
+const char* to_string(GaussNewtonTermination termination);
+
+struct GaussNewtonSummary {
+  GaussNewtonTermination termination = GaussNewtonTermination::kInvalidInput;
+  std::string message;  ///< why, for kInvalidInput and the failures
+  std::vector<GaussNewtonIteration> iterations;
+  double initial_objective = 0.0;  ///< Φ of the final stage's constraints at the template
+  double final_objective = 0.0;
+  double marker_error_mean = 0.0;  ///< final stage's markers at the end, metres
+  double marker_error_max = 0.0;
+  int equilibrium_solves = 0;
+  double seconds = 0.0;
+  bool usable() const {
+    return termination != GaussNewtonTermination::kInvalidInput &&
+           termination != GaussNewtonTermination::kEquilibriumFailed;
+  }
+  std::string brief_report() const;
+  std::string full_report() const;
+};
+
+/// The inputs of a registration, in the tet mesh's frame (embedded material points).
+struct RegistrationConstraints {
+  /// Springs of f_net (kind kAttachment; weight = spring stiffness, N/m).
+  std::vector<PointConstraint> attachments;
+  /// Landmarks with correspondence (kind kLandmark; weight multiplies α).
+  std::vector<PointConstraint> landmarks;
+  /// ICP markers: world points to be met by the closest surface point (weight 1 each).
+  std::vector<Eigen::Vector3d> icp_markers;
+};
+
+struct RegistrationResult {
+  Eigen::VectorXd s;  ///< 6m plastic state
+  Eigen::VectorXd x;  ///< 3n equilibrium positions
+  GaussNewtonSummary summary;
+};
+
+/// Called after each iteration (and after the initial fit) for progress output.
+using GaussNewtonProgress = std::function<void(const GaussNewtonIteration&)>;
+
+/// Runs the staged registration from the template (s = identity, x = rest positions).
+/// closest_point is needed when there are ICP markers (nullptr otherwise).
+RegistrationResult register_attached(const PlasticElasticEnergy& energy,
+                                     const RegistrationConstraints& constraints,
+                                     ClosestSurfacePoint* closest_point,
+                                     const GaussNewtonOptions& options = {},
+                                     const GaussNewtonProgress& progress = {});
+
+/// Brent's 1D minimisation of f on [a, b] (golden section + parabolic steps), at most
+/// max_evaluations calls, stopping when the bracket is below tolerance·(b − a). Returns the best
+/// point evaluated and its value. f may return +∞ (treated as a very bad value).
+struct BrentResult {
+  double x = 0.0;
+  double value = 0.0;
+  int evaluations = 0;
+};
+BrentResult brent_minimise(const std::function<double(double)>& f, double a, double b,
+                           double tolerance, int max_evaluations);
+
+}  // namespace sinew::offline

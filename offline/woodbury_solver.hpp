@@ -1,0 +1,138 @@
+#pragma once
+/// The Gauss–Newton system of seed 003 (§3.4, eqs. 11–14) and its two solvers:
+///   H y = h,   H = L² + ZᵀZ   (6m x 6m, dense: never formed),
+/// with L the plastic-strain Laplacian (offline/plastic_strain_laplacian.hpp) and Z (r x 6m, dense,
+/// r = 3·#constraints) the constraint rows times the equilibrium Jacobian (eq. 12).
+///
+/// Woodbury (eqs. 13–14): H = B + ẐᵀẐ with B = L² − Σψᵢψᵢᵀ and Ẑ = [Z; Ψᵀ] (Ψ = the six nullspace
+/// vectors of L as columns), so that
+///   y = B⁻¹h − B⁻¹Ẑᵀ (I + ẐB⁻¹Ẑᵀ)⁻¹ ẐB⁻¹h.
+/// B is never formed either (ψψᵀ is dense). On the range of L, B = L²; on its nullspace, B = −I. So
+///   B⁻¹ = (L²)⁺ − ΨΨᵀ,   (L²)⁺ = (L^sc⁺)² ⊗ diag(1/w²)
+/// (L = L^sc ⊗ diag(w), tet-major). L^sc⁺ is applied exactly with one sparse Cholesky factor of the
+/// grounded scalar Laplacian (row and column of tet 0 removed: SPD on a connected mesh) followed by
+/// projection onto 1⊥: "B factorised once per run", and m x m instead of 6m x 6m. The capacitance
+/// matrix I + ẐB⁻¹Ẑᵀ ((r+6) x (r+6), symmetric indefinite: its last 6x6 block is 0) is
+/// LU-factorised.
+///
+/// Conjugate gradients on H (matrix-free, H v = L(Lv) + Zᵀ(Zv)) is the reference the paper compares
+/// with (Table 1); it is here for tests and benchmarks.
+#include <Eigen/Core>
+#include <Eigen/LU>
+#include <Eigen/SparseCore>
+#include <optional>
+#include <string>
+
+#include "offline/plastic_strain_laplacian.hpp"
+#include "offline/sparse_cholesky.hpp"
+
+namespace sinew::offline {
+
+struct WoodburySolverOptions {
+  /// Ordering of the Cholesky factorisation of the grounded scalar Laplacian.
+  SparseCholeskyOrdering ordering = SparseCholeskyOrdering::kMetis;
+  /// Right-hand sides of B⁻¹ handled per block solve (each becomes 6 columns of L^sc solves):
+  /// bounds the work memory to about 12·m·block_columns doubles; ≥ 1.
+  int block_columns = 128;
+  /// Empty when valid; otherwise one line naming the field, its value and the constraint.
+  std::optional<std::string> validate() const;
+};
+
+enum class WoodburyStatus {
+  kOk,
+  kInvalidOptions,       ///< WoodburySolverOptions::validate() failed
+  kDisconnectedMesh,     ///< the tet adjacency has ≠ 1 component: L's nullspace is larger than Ψ
+  kInvalidInput,         ///< sizes do not match, NaN / infinity, or no mesh
+  kFactorisationFailed,  ///< CHOLMOD could not factorise the grounded Laplacian
+  kSingularCapacitance,  ///< I + ẐB⁻¹Ẑᵀ is singular: H is (numerically) singular
+  kNotFactorised,        ///< solve() before a successful set_constraint_rows()
+};
+const char* to_string(WoodburyStatus status);
+
+/// Solves H y = h by eq. 14. create() factorises the grounded scalar Laplacian once;
+/// set_constraint_rows(Z) prepares B⁻¹Ẑᵀ and the capacitance LU for one Gauss–Newton iteration;
+/// solve(h) is then two thin dense products and one small LU solve.
+class WoodburySolver {
+ public:
+  /// adjacency: face adjacency of the m tets (tet_face_adjacency); it must be ok() and connected.
+  static std::optional<WoodburySolver> create(const TetAdjacency& adjacency, Eigen::Index num_tets,
+                                              const WoodburySolverOptions& options = {},
+                                              std::string* error = nullptr);
+
+  Eigen::Index num_tets() const { return num_tets_; }
+  Eigen::Index size() const { return 6 * num_tets_; }  ///< 6m
+
+  /// out = B⁻¹ V for the columns of V (6m x k, tet-major); out must be 6m x k and not alias V.
+  WoodburyStatus apply_base_inverse(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                    Eigen::Ref<Eigen::MatrixXd> out);
+  /// out = (L²)⁺ V (the pseudo-inverse of L², exact); same shapes as apply_base_inverse.
+  WoodburyStatus apply_squared_laplacian_pseudo_inverse(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                                        Eigen::Ref<Eigen::MatrixXd> out);
+
+  /// Prepares the solve for H = L² + ZᵀZ + δΨΨᵀ with Z (r x 6m). δ ≥ 0 damps only the six
+  /// constant-strain modes (Ψ, the nullspace of L), where H is singular when the constraints do
+  /// not see a uniform change of s (e.g. stiff attachments alone); it enters as Ẑ's last six rows
+  /// √(1 + δ)·Ψᵀ, so B is unchanged.
+  WoodburyStatus set_constraint_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                     double nullspace_damping = 0.0);
+  /// y = H⁻¹ h (6m); y must be 6m and not alias h.
+  WoodburyStatus solve(const Eigen::Ref<const Eigen::VectorXd>& h, Eigen::Ref<Eigen::VectorXd> y);
+
+  /// Seconds of the last set_constraint_rows(): B⁻¹Ẑᵀ (Laplacian solves) and the capacitance
+  /// (product ẐB⁻¹Ẑᵀ and LU).
+  double base_solve_seconds() const { return base_solve_seconds_; }
+  double capacitance_seconds() const { return capacitance_seconds_; }
+  /// Seconds of the one-off factorisation in create().
+  double factorisation_seconds() const { return factorisation_seconds_; }
+
+ private:
+  WoodburySolver() = default;
+  // out = (L^sc⁺)² applied per component with 1/w² (the (L²)⁺ part of B⁻¹), block of ≤ block
+  // columns.
+  void squared_pseudo_inverse_block(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                    Eigen::Ref<Eigen::MatrixXd> out);
+  // In place: columns of U (m x k) ← L^sc⁺ U.
+  void scalar_pseudo_inverse(Eigen::MatrixXd& U);
+
+  WoodburySolverOptions options_;
+  Eigen::Index num_tets_ = 0;
+  SparseCholesky grounded_;       // L^sc without row/column 0
+  Eigen::MatrixXd Z_;             // r x 6m, the rows of the last set_constraint_rows()
+  Eigen::MatrixXd Binv_Zhat_t_;   // 6m x (r + 6): B⁻¹Ẑᵀ
+  double nullspace_scale_ = 1.0;  // √(1 + δ)
+  Eigen::PartialPivLU<Eigen::MatrixXd> capacitance_;
+  bool factorised_ = false;
+  // Work blocks (m x 6k).
+  Eigen::MatrixXd work_rhs_, work_solution_;
+  double base_solve_seconds_ = 0.0;
+  double capacitance_seconds_ = 0.0;
+  double factorisation_seconds_ = 0.0;
+};
+
+/// H v = L(Lv) + Zᵀ(Zv) into out (6m). L: the 6m x 6m plastic-strain Laplacian; Z: r x 6m.
+void apply_gauss_newton_hessian(const Eigen::SparseMatrix<double>& L,
+                                const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                const Eigen::Ref<const Eigen::VectorXd>& v,
+                                Eigen::Ref<Eigen::VectorXd> out);
+
+struct ConjugateGradientOptions {
+  int max_iterations = 100000;        ///< ≥ 1
+  double relative_tolerance = 1e-10;  ///< stop when ‖h − Hy‖ ≤ tol·‖h‖; in (0, 1)
+  std::optional<std::string> validate() const;
+};
+
+struct ConjugateGradientSummary {
+  bool converged = false;
+  int iterations = 0;
+  double relative_residual = 0.0;  ///< ‖h − Hy‖ / ‖h‖ at the end
+  double seconds = 0.0;
+};
+
+/// Unpreconditioned conjugate gradients on H y = h (Table 1's CG), from y = 0.
+ConjugateGradientSummary conjugate_gradient_solve(const Eigen::SparseMatrix<double>& L,
+                                                  const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                                  const Eigen::Ref<const Eigen::VectorXd>& h,
+                                                  Eigen::Ref<Eigen::VectorXd> y,
+                                                  const ConjugateGradientOptions& options = {});
+
+}  // namespace sinew::offline
