@@ -33,6 +33,7 @@
 #include "offline/constraints.hpp"
 #include "offline/equilibrium.hpp"
 #include "offline/plastic_elastic_energy.hpp"
+#include "offline/sparse_cholesky.hpp"
 #include "offline/woodbury_solver.hpp"
 
 namespace sinew::offline {
@@ -174,6 +175,20 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy,
                                      ClosestSurfacePoint* closest_point,
                                      const GaussNewtonOptions& options = {},
                                      const GaussNewtonProgress& progress = {});
+
+/// The rows of the Gauss–Newton system for objective terms at (s, x): Z = −[√c_k A_k]·K⁻¹·∂f/∂s
+/// (eq. 12; r x 6m, r = 3·terms.size()) and the residual r = [√c_k (A_k x + b_k)] (r), with
+/// K = ∂f_net/∂x = ∂²E/∂x² + the springs' Hessian factorised into tangent (its symbolic analysis
+/// is reused while the pattern does not change). energy must use the exact stiffness (no
+/// projection) and full storage. std::nullopt with why set when K is not positive definite.
+struct ConstraintJacobian {
+  Eigen::MatrixXd Z;
+  Eigen::VectorXd residual;
+};
+std::optional<ConstraintJacobian> constraint_jacobian(
+    PlasticElasticEnergy& energy, const PointConstraints& springs, const PointConstraints& terms,
+    const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
+    SparseCholesky& tangent, std::string* why = nullptr);
 
 /// Brent's 1D minimisation of f on [a, b] (golden section + parabolic steps), at most
 /// max_evaluations calls, stopping when the bracket is below tolerance·(b − a). Returns the best

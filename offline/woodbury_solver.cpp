@@ -17,17 +17,6 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-// C (rows x cols) = A (rows x inner) · B (inner x cols), column-major, through OpenBLAS: the
-// capacitance product ẐB⁻¹Ẑᵀ is r x 6m x r (≈1.5e11 flops for 900 rows on 30k tets), where
-// OpenBLAS's run-time-dispatched kernels are several times faster than Eigen's portable ones.
-void blas_product(const Eigen::Ref<const Eigen::MatrixXd>& A,
-                  const Eigen::Ref<const Eigen::MatrixXd>& B, Eigen::Ref<Eigen::MatrixXd> C) {
-  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, static_cast<int>(A.rows()),
-              static_cast<int>(B.cols()), static_cast<int>(A.cols()), 1.0, A.data(),
-              static_cast<int>(A.outerStride()), B.data(), static_cast<int>(B.outerStride()), 0.0,
-              C.data(), static_cast<int>(C.outerStride()));
-}
-
 }  // namespace
 
 const char* to_string(WoodburyStatus status) {
@@ -67,6 +56,10 @@ std::optional<std::string> ConjugateGradientOptions::validate() const {
   }
   if (!(relative_tolerance > 0.0 && relative_tolerance < 1.0)) {
     out << "relative_tolerance = " << relative_tolerance << " must be in (0, 1)";
+    return out.str();
+  }
+  if (!(max_seconds >= 0.0)) {
+    out << "max_seconds = " << max_seconds << " must be >= 0";
     return out.str();
   }
   return std::nullopt;
@@ -167,6 +160,43 @@ WoodburyStatus WoodburySolver::apply_base_inverse(const Eigen::Ref<const Eigen::
   return WoodburyStatus::kOk;
 }
 
+void WoodburySolver::laplacian_pseudo_inverse_of_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                                      Eigen::Ref<Eigen::MatrixXd> Y) {
+  // Y = L⁺Zᵀ, L⁺ = L^sc⁺ ⊗ diag(1/w): gather rows of Z into component columns of an m x 6k block
+  // (k rows of Z at a time), one grounded solve for the block, scatter back with 1/w.
+  const Eigen::Index m = num_tets_;
+  const std::array<double, 6>& w = plastic_strain_laplacian_weights();
+  const Eigen::Index block = options_.block_columns;
+  for (Eigen::Index j0 = 0; j0 < Z.rows(); j0 += block) {
+    const Eigen::Index k = std::min(block, Z.rows() - j0);
+    work_rhs_.resize(m, 6 * k);
+    for (Eigen::Index t = 0; t < m; ++t) {
+      for (int c = 0; c < 6; ++c) {
+        for (Eigen::Index j = 0; j < k; ++j) work_rhs_(t, 6 * j + c) = Z(j0 + j, 6 * t + c);
+      }
+    }
+    scalar_pseudo_inverse(work_rhs_);
+    for (Eigen::Index j = 0; j < k; ++j) {
+      for (Eigen::Index t = 0; t < m; ++t) {
+        for (int c = 0; c < 6; ++c) Y(6 * t + c, j0 + j) = work_rhs_(t, 6 * j + c) / w[c];
+      }
+    }
+  }
+}
+
+void WoodburySolver::apply_laplacian_pseudo_inverse(Eigen::Ref<Eigen::VectorXd> v) {
+  const Eigen::Index m = num_tets_;
+  const std::array<double, 6>& w = plastic_strain_laplacian_weights();
+  work_rhs_.resize(m, 6);
+  for (Eigen::Index t = 0; t < m; ++t) {
+    for (int c = 0; c < 6; ++c) work_rhs_(t, c) = v(6 * t + c);
+  }
+  scalar_pseudo_inverse(work_rhs_);
+  for (Eigen::Index t = 0; t < m; ++t) {
+    for (int c = 0; c < 6; ++c) v(6 * t + c) = work_rhs_(t, c) / w[c];
+  }
+}
+
 WoodburyStatus WoodburySolver::set_constraint_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
                                                    double nullspace_damping) {
   factorised_ = false;
@@ -174,33 +204,38 @@ WoodburyStatus WoodburySolver::set_constraint_rows(const Eigen::Ref<const Eigen:
   if (!(nullspace_damping >= 0.0 && std::isfinite(nullspace_damping))) {
     return WoodburyStatus::kInvalidInput;
   }
-  nullspace_scale_ = std::sqrt(1.0 + nullspace_damping);
+  const double k = std::sqrt(1.0 + nullspace_damping);
+  nullspace_scale_ = k;
   const Eigen::Index r = Z.rows();
   const Eigen::Index m = num_tets_;
   Z_ = Z;
-  // B⁻¹Ẑᵀ = [B⁻¹Zᵀ, B⁻¹Ψ·k] = [B⁻¹Zᵀ, −k·Ψ] (B = −I on the nullspace; k = √(1 + δ)).
-  Clock::time_point start = Clock::now();
-  Binv_Zhat_t_.resize(size(), r + 6);
-  const WoodburyStatus status = apply_base_inverse(Z.transpose(), Binv_Zhat_t_.leftCols(r));
-  if (status != WoodburyStatus::kOk) return status;
-  Binv_Zhat_t_.rightCols(6).setZero();
+  // ZΨ (r x 6): Ψ's column c sums component c over the tets, / √m.
   const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
-  for (Eigen::Index t = 0; t < m; ++t) {
-    for (int c = 0; c < 6; ++c) Binv_Zhat_t_(6 * t + c, r + c) = -nullspace_scale_ * inv_sqrt_m;
-  }
+  Z_psi_.setZero(r, 6);
+  for (Eigen::Index t = 0; t < m; ++t) Z_psi_ += Z_.middleCols<6>(6 * t);
+  Z_psi_ *= inv_sqrt_m;
+
+  // With Y = L⁺Zᵀ (one Laplacian solve per row of Z, not two: (L²)⁺ = L⁺L⁺ and L⁺ symmetric),
+  //   Z B⁻¹ Zᵀ = Z(L²)⁺Zᵀ − ZΨΨᵀZᵀ = YᵀY − (ZΨ)(ZΨ)ᵀ,  Z B⁻¹(kΨ) = −k ZΨ,  kΨᵀB⁻¹kΨ = −k²I,
+  // so the capacitance I + ẐB⁻¹Ẑᵀ needs YᵀY (a symmetric rank-6m product) and nothing 6m x r
+  // is kept after this call.
+  Clock::time_point start = Clock::now();
+  Eigen::MatrixXd Y(size(), r);
+  laplacian_pseudo_inverse_of_rows(Z_, Y);
   base_solve_seconds_ = seconds_since(start);
 
-  // Capacitance I + ẐB⁻¹Ẑᵀ = I + [Z; kΨᵀ]·B⁻¹Ẑᵀ.
   start = Clock::now();
   Eigen::MatrixXd capacitance = Eigen::MatrixXd::Identity(r + 6, r + 6);
-  Eigen::MatrixXd ZY(r, r + 6);
-  blas_product(Z_, Binv_Zhat_t_, ZY);
-  capacitance.topRows(r) += ZY;
-  for (Eigen::Index j = 0; j < r + 6; ++j) {
-    Eigen::Matrix<double, 6, 1> sums = Eigen::Matrix<double, 6, 1>::Zero();
-    for (Eigen::Index t = 0; t < m; ++t) sums += Binv_Zhat_t_.col(j).segment<6>(6 * t);
-    capacitance.block<6, 1>(r, j) += sums * (nullspace_scale_ * inv_sqrt_m);
-  }
+  // YᵀY through OpenBLAS's dsyrk (upper triangle), then mirrored.
+  Eigen::MatrixXd YtY(r, r);
+  cblas_dsyrk(CblasColMajor, CblasUpper, CblasTrans, static_cast<int>(r), static_cast<int>(size()),
+              1.0, Y.data(), static_cast<int>(Y.outerStride()), 0.0, YtY.data(),
+              static_cast<int>(YtY.outerStride()));
+  YtY.triangularView<Eigen::StrictlyLower>() = YtY.transpose();
+  capacitance.topLeftCorner(r, r) += YtY - Z_psi_ * Z_psi_.transpose();
+  capacitance.topRightCorner(r, 6) = -k * Z_psi_;
+  capacitance.bottomLeftCorner(6, r) = -k * Z_psi_.transpose();
+  capacitance.bottomRightCorner<6, 6>() -= k * k * Eigen::Matrix<double, 6, 6>::Identity();
   capacitance_.compute(capacitance);
   capacitance_seconds_ = seconds_since(start);
   // PartialPivLU does not report singularity: check the pivots' scale instead.
@@ -218,21 +253,27 @@ WoodburyStatus WoodburySolver::solve(const Eigen::Ref<const Eigen::VectorXd>& h,
   if (h.size() != size() || y.size() != size() || !h.allFinite()) {
     return WoodburyStatus::kInvalidInput;
   }
-  // y = B⁻¹h − B⁻¹Ẑᵀ C⁻¹ Ẑ B⁻¹h (eq. 14).
-  Eigen::VectorXd Binv_h(size());
-  const WoodburyStatus status = apply_base_inverse(h, Binv_h);
+  // y = u − B⁻¹Ẑᵀ C⁻¹ Ẑu,  u = B⁻¹h (eq. 14).
+  Eigen::VectorXd u(size());
+  const WoodburyStatus status = apply_base_inverse(h, u);
   if (status != WoodburyStatus::kOk) return status;
   const Eigen::Index r = Z_.rows();
-  Eigen::VectorXd Zhat_Binv_h(r + 6);
-  Zhat_Binv_h.head(r).noalias() = Z_ * Binv_h;
-  Zhat_Binv_h.tail<6>().setZero();
+  const double k = nullspace_scale_;
   const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(num_tets_));
-  for (Eigen::Index t = 0; t < num_tets_; ++t) {
-    Zhat_Binv_h.tail<6>() += Binv_h.segment<6>(6 * t) * (nullspace_scale_ * inv_sqrt_m);
-  }
-  const Eigen::VectorXd correction = capacitance_.solve(Zhat_Binv_h);
-  y = Binv_h;
-  y.noalias() -= Binv_Zhat_t_ * correction;
+  Eigen::VectorXd Zhat_u(r + 6);
+  Zhat_u.head(r).noalias() = Z_ * u;
+  Zhat_u.tail<6>().setZero();
+  for (Eigen::Index t = 0; t < num_tets_; ++t) Zhat_u.tail<6>() += u.segment<6>(6 * t);
+  Zhat_u.tail<6>() *= k * inv_sqrt_m;
+  const Eigen::VectorXd c = capacitance_.solve(Zhat_u);
+  // B⁻¹Ẑᵀc = (L²)⁺Zᵀc₁ − Ψ(ZΨ)ᵀc₁ − kΨc₂.
+  Eigen::VectorXd correction = Z_.transpose() * c.head(r);
+  apply_laplacian_pseudo_inverse(correction);
+  apply_laplacian_pseudo_inverse(correction);
+  const Eigen::Matrix<double, 6, 1> nullspace_part =
+      (Z_psi_.transpose() * c.head(r) + k * c.tail<6>()) * inv_sqrt_m;
+  for (Eigen::Index t = 0; t < num_tets_; ++t) correction.segment<6>(6 * t) -= nullspace_part;
+  y = u - correction;
   return y.allFinite() ? WoodburyStatus::kOk : WoodburyStatus::kSingularCapacitance;
 }
 
@@ -265,6 +306,10 @@ ConjugateGradientSummary conjugate_gradient_solve(const Eigen::SparseMatrix<doub
   double residual_sq = residual.squaredNorm();
   const double target_sq = std::pow(options.relative_tolerance * h_norm, 2);
   while (summary.iterations < options.max_iterations && residual_sq > target_sq) {
+    if (options.max_seconds > 0.0 && summary.iterations % 16 == 0 &&
+        seconds_since(start) > options.max_seconds) {
+      break;
+    }
     apply_gauss_newton_hessian(L, Z, direction, H_direction);
     const double curvature = direction.dot(H_direction);
     if (!(curvature > 0.0)) break;

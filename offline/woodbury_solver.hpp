@@ -50,8 +50,9 @@ enum class WoodburyStatus {
 const char* to_string(WoodburyStatus status);
 
 /// Solves H y = h by eq. 14. create() factorises the grounded scalar Laplacian once;
-/// set_constraint_rows(Z) prepares B⁻¹Ẑᵀ and the capacitance LU for one Gauss–Newton iteration;
-/// solve(h) is then two thin dense products and one small LU solve.
+/// set_constraint_rows(Z) forms the capacitance from Y = L⁺Zᵀ (one Laplacian solve per row of Z,
+/// since (L²)⁺ = L⁺L⁺) as I + YᵀY − … and LU-factorises it; solve(h) is then four single-column
+/// Laplacian solves, two thin products with Z and one small LU solve.
 class WoodburySolver {
  public:
   /// adjacency: face adjacency of the m tets (tet_face_adjacency); it must be ok() and connected.
@@ -78,8 +79,8 @@ class WoodburySolver {
   /// y = H⁻¹ h (6m); y must be 6m and not alias h.
   WoodburyStatus solve(const Eigen::Ref<const Eigen::VectorXd>& h, Eigen::Ref<Eigen::VectorXd> y);
 
-  /// Seconds of the last set_constraint_rows(): B⁻¹Ẑᵀ (Laplacian solves) and the capacitance
-  /// (product ẐB⁻¹Ẑᵀ and LU).
+  /// Seconds of the last set_constraint_rows(): Y = L⁺Zᵀ (Laplacian solves) and the capacitance
+  /// (the product YᵀY and the LU).
   double base_solve_seconds() const { return base_solve_seconds_; }
   double capacitance_seconds() const { return capacitance_seconds_; }
   /// Seconds of the one-off factorisation in create().
@@ -93,12 +94,17 @@ class WoodburySolver {
                                     Eigen::Ref<Eigen::MatrixXd> out);
   // In place: columns of U (m x k) ← L^sc⁺ U.
   void scalar_pseudo_inverse(Eigen::MatrixXd& U);
+  // Y (6m x r) = L⁺Zᵀ for the rows of Z (r x 6m), in blocks of block_columns rows.
+  void laplacian_pseudo_inverse_of_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                        Eigen::Ref<Eigen::MatrixXd> Y);
+  // In place: v (6m) ← L⁺v.
+  void apply_laplacian_pseudo_inverse(Eigen::Ref<Eigen::VectorXd> v);
 
   WoodburySolverOptions options_;
   Eigen::Index num_tets_ = 0;
   SparseCholesky grounded_;       // L^sc without row/column 0
   Eigen::MatrixXd Z_;             // r x 6m, the rows of the last set_constraint_rows()
-  Eigen::MatrixXd Binv_Zhat_t_;   // 6m x (r + 6): B⁻¹Ẑᵀ
+  Eigen::MatrixXd Z_psi_;         // r x 6: ZΨ
   double nullspace_scale_ = 1.0;  // √(1 + δ)
   Eigen::PartialPivLU<Eigen::MatrixXd> capacitance_;
   bool factorised_ = false;
@@ -118,6 +124,8 @@ void apply_gauss_newton_hessian(const Eigen::SparseMatrix<double>& L,
 struct ConjugateGradientOptions {
   int max_iterations = 100000;        ///< ≥ 1
   double relative_tolerance = 1e-10;  ///< stop when ‖h − Hy‖ ≤ tol·‖h‖; in (0, 1)
+  /// Stop after this much wall-clock time (seconds; 0 = no limit, ≥ 0): the benchmark's cap.
+  double max_seconds = 0.0;
   std::optional<std::string> validate() const;
 };
 

@@ -4,12 +4,17 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Mesh_complex_3_in_triangulation_3.h>
 #include <CGAL/Mesh_criteria_3.h>
+#include <CGAL/Mesh_optimization_return_code.h>
 #include <CGAL/Mesh_triangulation_3.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Polyhedral_mesh_domain_with_features_3.h>
 #include <CGAL/Random.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/exude_mesh_3.h>
+#include <CGAL/lloyd_optimize_mesh_3.h>
 #include <CGAL/make_mesh_3.h>
+#include <CGAL/odt_optimize_mesh_3.h>
+#include <CGAL/perturb_mesh_3.h>
 
 #include <Eigen/Geometry>
 
@@ -382,8 +387,12 @@ std::optional<std::string> TetMesherOptions::validate() const {
       << " must be finite and >= 2 (CGAL terminates only for ratios >= 2)";
   } else if (!(smoothing_iterations >= 1 && smoothing_iterations <= 1000)) {
     s << "smoothing_iterations = " << smoothing_iterations << " must be in [1, 1000]";
-  } else if (!(sliver_bound_degrees >= 0.0 && sliver_bound_degrees < 60.0)) {
-    s << "sliver_bound_degrees = " << sliver_bound_degrees << " must be in [0, 60)";
+  } else if (!(sliver_bound_degrees > 0.0 && sliver_bound_degrees < 60.0)) {
+    s << "sliver_bound_degrees = " << sliver_bound_degrees << " must be in (0, 60)";
+  } else if (!(optimisation_time_limit_seconds >= 0.0 &&
+               std::isfinite(optimisation_time_limit_seconds))) {
+    s << "optimisation_time_limit_seconds = " << optimisation_time_limit_seconds
+      << " must be finite and >= 0 (0: no limit)";
   } else if (!(feature_angle_degrees > 0.0 && feature_angle_degrees < 180.0)) {
     s << "feature_angle_degrees = " << feature_angle_degrees << " must be in (0, 180)";
   } else if (!(max_vertices >= 4 && max_vertices <= 100'000'000)) {
@@ -460,8 +469,13 @@ std::string TetMesherSummary::full_report() const {
   optional(min_radius_ratio);
   s << "  mean radius ratio:      ";
   optional(mean_radius_ratio);
-  s << "  check time (s):         " << check_seconds << "\n"
+  s << "  time limit reached:     " << (time_limit_reached ? "yes (not reproducible)" : "no")
+    << "\n"
+    << "  check time (s):         " << check_seconds << "\n"
     << "  meshing time (s):       " << meshing_seconds << "\n"
+    << "    refine / odt / lloyd: " << refine_seconds << " / " << odt_seconds << " / "
+    << lloyd_seconds << "\n"
+    << "    perturb / exude:      " << perturb_seconds << " / " << exude_seconds << "\n"
     << "  total time (s):         " << seconds << "\n";
   return s.str();
 }
@@ -497,7 +511,7 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
   summary.enclosed_volume = std::abs(summary.enclosed_volume);
 
   const double diagonal = summary.bounding_box_diagonal;
-  const auto meshing_start = Clock::now();
+  auto meshing_start = Clock::now();
   try {
     SurfaceMesh sm;
     if (!build_surface_mesh(vertices, faces, &sm)) {
@@ -511,6 +525,7 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
                     "the surface intersects itself (two of its faces cross)");
     }
     summary.check_seconds = seconds_since(start);
+    meshing_start = Clock::now();
 
     // Mesh_3 draws its random initial surface points from the domain's generator; the default
     // generator is reset too in case some step falls back on it.
@@ -526,25 +541,20 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
         p::facet_size = cell_size, p::facet_distance = options.facet_distance_fraction * diagonal,
         p::cell_radius_edge_ratio = options.cell_radius_edge_ratio, p::cell_size = cell_size);
 
-    // Time limits 0 (none) everywhere: the defaults of perturbation and exudation (the refinement
-    // time) would make the output depend on the machine's load.
-    const int iterations = options.smoothing_iterations;
+    // Refinement, then each optimisation phase on its own (timed, return code read). Time limits
+    // are explicit: make_mesh_3's default for perturbation and exudation (the refinement time)
+    // would make the output depend on the machine's load.
     CGAL::Mesh_error_code error_code = CGAL::CGAL_MESH_3_NO_ERROR;
-    const Complex c3t3 = CGAL::make_mesh_3<Complex>(
+    auto phase_start = Clock::now();
+    Complex c3t3 = CGAL::make_mesh_3<Complex>(
         domain, criteria, options.protect_sharp_features ? p::features(domain) : p::no_features(),
-        options.odt ? p::odt(p::time_limit = 0, p::max_iteration_number = iterations) : p::no_odt(),
-        options.lloyd ? p::lloyd(p::time_limit = 0, p::max_iteration_number = iterations)
-                      : p::no_lloyd(),
-        options.perturb
-            ? p::perturb(p::time_limit = 0, p::sliver_bound = options.sliver_bound_degrees)
-            : p::no_perturb(),
-        options.exude ? p::exude(p::time_limit = 0, p::sliver_bound = options.sliver_bound_degrees)
-                      : p::no_exude(),
+        p::no_odt(), p::no_lloyd(), p::no_perturb(), p::no_exude(),
         p::mesh_3_options(
             p::maximal_number_of_vertices = static_cast<std::size_t>(options.max_vertices),
             p::pointer_to_error_code = &error_code));
-    summary.meshing_seconds = seconds_since(meshing_start);
+    summary.refine_seconds = seconds_since(phase_start);
     if (error_code == CGAL::CGAL_MESH_3_MAXIMAL_NUMBER_OF_VERTICES_REACHED) {
+      summary.meshing_seconds = seconds_since(meshing_start);
       std::ostringstream s;
       s << "refinement reached max_vertices = " << options.max_vertices << " (cell_size_fraction "
         << options.cell_size_fraction << ", facet_distance_fraction "
@@ -552,8 +562,38 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
       return finish(TetMesherStatus::kVertexLimitReached, s.str());
     }
     if (error_code != CGAL::CGAL_MESH_3_NO_ERROR) {
+      summary.meshing_seconds = seconds_since(meshing_start);
       return finish(TetMesherStatus::kCgalFailed, CGAL::mesh_error_string(error_code));
     }
+    const int iterations = options.smoothing_iterations;
+    if (options.odt) {
+      phase_start = Clock::now();
+      CGAL::odt_optimize_mesh_3(c3t3, domain, p::time_limit = 0,
+                                p::max_iteration_number = iterations);
+      summary.odt_seconds = seconds_since(phase_start);
+    }
+    if (options.lloyd) {
+      phase_start = Clock::now();
+      CGAL::lloyd_optimize_mesh_3(c3t3, domain, p::time_limit = 0,
+                                  p::max_iteration_number = iterations);
+      summary.lloyd_seconds = seconds_since(phase_start);
+    }
+    const double time_limit = options.optimisation_time_limit_seconds;
+    if (options.perturb) {
+      phase_start = Clock::now();
+      const auto code = CGAL::perturb_mesh_3(c3t3, domain, p::time_limit = time_limit,
+                                             p::sliver_bound = options.sliver_bound_degrees);
+      summary.perturb_seconds = seconds_since(phase_start);
+      summary.time_limit_reached |= code == CGAL::TIME_LIMIT_REACHED;
+    }
+    if (options.exude) {
+      phase_start = Clock::now();
+      const auto code = CGAL::exude_mesh_3(c3t3, p::time_limit = time_limit,
+                                           p::sliver_bound = options.sliver_bound_degrees);
+      summary.exude_seconds = seconds_since(phase_start);
+      summary.time_limit_reached |= code == CGAL::TIME_LIMIT_REACHED;
+    }
+    summary.meshing_seconds = seconds_since(meshing_start);
     result.mesh = extract_tets(c3t3, &summary.flipped_tets);
   } catch (const std::exception& e) {
     summary.meshing_seconds = seconds_since(meshing_start);

@@ -244,36 +244,25 @@ TEST(TetMesher, SphereMeshIsValidAccurateAndWellShaped) {
 TEST(TetMesher, DeterministicForFixedSeed) {
   const Surface sphere = icosphere(2);
   TetMesherOptions options;
-  options.cell_size_fraction = 0.12;
-  options.facet_distance_fraction = 0.005;
   options.random_seed = 42;
+  options.lloyd = true;  // every phase on
+  options.smoothing_iterations = 5;
   const TetMesherResult a = make_tet_mesh(sphere.V, sphere.F, options);
   const TetMesherResult b = make_tet_mesh(sphere.V, sphere.F, options);
   ASSERT_TRUE(a.summary.ok()) << a.summary.brief_report();
-  std::cout << a.summary.full_report();  // DEBUG
-  for (int level : {2, 3}) for (double cell : {0.04, 0.06, 0.1, 0.15}) for (int combo = 0; combo < 5; ++combo) {
-    const Surface sp = icosphere(level);
-    TetMesherOptions o = options; o.cell_size_fraction = cell; o.facet_distance_fraction = 0.002;
-    o.perturb = combo == 3; o.odt = combo == 2 || combo == 3; o.sliver_bound_degrees = combo == 4 ? 12.0 : 0.0; o.lloyd = false;
-    std::cout << level << " " << cell << " combo " << combo << " " << make_tet_mesh(sp.V, sp.F, o).summary.brief_report() << std::endl;
-  }
   ASSERT_TRUE(b.summary.ok()) << b.summary.brief_report();
-  EXPECT_GT(a.mesh.tets.rows(), 50);
+  EXPECT_GT(a.mesh.tets.rows(), 500);
+  EXPECT_FALSE(a.summary.time_limit_reached);
   ASSERT_EQ(a.mesh.tets.rows(), b.mesh.tets.rows());
   ASSERT_EQ(a.mesh.vertices.rows(), b.mesh.vertices.rows());
   EXPECT_TRUE(a.mesh.tets == b.mesh.tets);
   EXPECT_TRUE(a.mesh.vertices == b.mesh.vertices);  // bitwise
 }
 
-TEST(TetMesher, InwardOrientedSurfaceAndOptimisersWork) {
+TEST(TetMesher, InwardOrientedSmallSurfaceIsMeshed) {
   Surface sphere = icosphere(2, 0.05);  // 5 cm: sizes are relative to the diagonal
   sphere.F.col(1).swap(sphere.F.col(2));
-  TetMesherOptions options;
-  options.cell_size_fraction = 0.1;
-  options.odt = true;
-  options.lloyd = true;
-  options.smoothing_iterations = 5;
-  const TetMesherResult r = make_tet_mesh(sphere.V, sphere.F, options);
+  const TetMesherResult r = make_tet_mesh(sphere.V, sphere.F);
   ASSERT_TRUE(r.summary.ok()) << r.summary.brief_report();
   EXPECT_TRUE(r.summary.input_inward_oriented);
   EXPECT_NEAR(r.summary.tet_volume, r.summary.enclosed_volume, 0.03 * r.summary.enclosed_volume);
