@@ -34,6 +34,7 @@
 #include "offline/equilibrium.hpp"
 #include "offline/plastic_elastic_energy.hpp"
 #include "offline/sparse_cholesky.hpp"
+#include "offline/surface_closest_point.hpp"
 #include "offline/woodbury_solver.hpp"
 
 namespace sinew::offline {
@@ -48,6 +49,20 @@ class ClosestSurfacePoint {
   virtual void update(const Eigen::Ref<const Eigen::VectorXd>& x) = 0;
   /// The material point closest to query on the current surface.
   virtual EmbeddedPoint closest(const Eigen::Vector3d& query) const = 0;
+};
+
+/// ClosestSurfacePoint on the CGAL AABB tree of offline/surface_closest_point.hpp.
+class BoundaryClosestPoint final : public ClosestSurfacePoint {
+ public:
+  /// surface must outlive this object.
+  explicit BoundaryClosestPoint(SurfaceClosestPoint& surface) : surface_(&surface) {}
+  void update(const Eigen::Ref<const Eigen::VectorXd>& x) override { surface_->update(x); }
+  EmbeddedPoint closest(const Eigen::Vector3d& query) const override {
+    return surface_->query(query).embedded;
+  }
+
+ private:
+  SurfaceClosestPoint* surface_;
 };
 
 enum class RegistrationStage {
