@@ -149,11 +149,9 @@ class Registration {
     // Gradient of eq. 8 at Δs = 0: L²s + Zᵀr.
     const Eigen::VectorXd Ls = laplacian_ * s;
     Eigen::VectorXd gradient = laplacian_ * Ls;
-    gradient.noalias() += jacobian->Z.transpose() * jacobian->residual;
-    const Eigen::MatrixXd Z_psi =
-        jacobian->Z * plastic_strain_laplacian_nullspace(energy_.num_tets());
-    const double damping = options_.nullspace_damping * Z_psi.squaredNorm() / 6.0 + 1e-12;
-    WoodburyStatus solved = woodbury_.set_constraint_rows(jacobian->Z, damping);
+    gradient.noalias() += jacobian->Zt * jacobian->residual;
+    WoodburyStatus solved = woodbury_.set_constraint_rows_transposed(std::move(jacobian->Zt),
+                                                                     options_.nullspace_damping);
     step.resize(s.size());
     if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
     record.woodbury_seconds = seconds_since(start);
@@ -255,9 +253,8 @@ std::optional<ConstraintJacobian> constraint_jacobian(PlasticElasticEnergy& ener
   const Eigen::MatrixXd rhs = Eigen::MatrixXd(weighted_rows.transpose());
   Eigen::MatrixXd W(rhs.rows(), rhs.cols());
   if (tangent.solve(rhs, W) != SparseCholeskyStatus::kOk) return fail("tangent solve failed");
-  // Sparse-times-dense (Gᵀ W, column by column) is far faster in Eigen than dense-times-sparse.
-  const Eigen::MatrixXd Zt = energy.force_jacobian().transpose() * W;
-  result.Z = -Zt.transpose();
+  // Zᵀ = −(∂f/∂s)ᵀ W: sparse-times-dense, column by column.
+  result.Zt.noalias() = -(energy.force_jacobian().transpose() * W);
   return result;
 }
 

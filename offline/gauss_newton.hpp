@@ -104,7 +104,8 @@ struct GaussNewtonOptions {
   /// Levenberg damping of the six constant-strain modes (the nullspace of L), relative to
   /// ‖ZΨ‖²/6, the constraints' own curvature along them; ≥ 0. H = L² + ZᵀZ is singular there when
   /// the stage's constraints hardly see a uniform change of s (stiff attachments alone), and
-  /// δ = damping·‖ZΨ‖²/6 + 1e-12 keeps the Woodbury capacitance invertible.
+  /// δ = damping·‖ZΨ‖²/6 + 1e-12 keeps the Woodbury capacitance invertible (see
+  /// WoodburySolver::set_constraint_rows_transposed).
   double nullspace_damping = 1e-6;
   /// Eigenvalue floor of Fp after each step (§3.4: 0.01); > 0.
   double eigenvalue_floor = kDefaultEigenvalueFloor;
@@ -192,12 +193,14 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy,
                                      const GaussNewtonProgress& progress = {});
 
 /// The rows of the Gauss–Newton system for objective terms at (s, x): Z = −[√c_k A_k]·K⁻¹·∂f/∂s
-/// (eq. 12; r x 6m, r = 3·terms.size()) and the residual r = [√c_k (A_k x + b_k)] (r), with
+/// (eq. 12; r x 6m, r = 3·terms.size()), returned TRANSPOSED as Zt (6m x r, the layout the
+/// Woodbury solver and the products with it want), and the residual r = [√c_k (A_k x + b_k)] (r),
+/// with
 /// K = ∂f_net/∂x = ∂²E/∂x² + the springs' Hessian factorised into tangent (its symbolic analysis
 /// is reused while the pattern does not change). energy must use the exact stiffness (no
 /// projection) and full storage. std::nullopt with why set when K is not positive definite.
 struct ConstraintJacobian {
-  Eigen::MatrixXd Z;
+  Eigen::MatrixXd Zt;  ///< Zᵀ, 6m x r
   Eigen::VectorXd residual;
 };
 std::optional<ConstraintJacobian> constraint_jacobian(

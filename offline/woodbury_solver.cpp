@@ -160,19 +160,19 @@ WoodburyStatus WoodburySolver::apply_base_inverse(const Eigen::Ref<const Eigen::
   return WoodburyStatus::kOk;
 }
 
-void WoodburySolver::laplacian_pseudo_inverse_of_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
-                                                      Eigen::Ref<Eigen::MatrixXd> Y) {
-  // Y = L⁺Zᵀ, L⁺ = L^sc⁺ ⊗ diag(1/w): gather rows of Z into component columns of an m x 6k block
-  // (k rows of Z at a time), one grounded solve for the block, scatter back with 1/w.
+void WoodburySolver::laplacian_pseudo_inverse_of_columns(
+    const Eigen::Ref<const Eigen::MatrixXd>& Zt, Eigen::Ref<Eigen::MatrixXd> Y) {
+  // Y = L⁺Zᵀ, L⁺ = L^sc⁺ ⊗ diag(1/w): gather columns of Zᵀ into component columns of an m x 6k
+  // block (k columns at a time), one grounded block solve, scatter back with 1/w.
   const Eigen::Index m = num_tets_;
   const std::array<double, 6>& w = plastic_strain_laplacian_weights();
   const Eigen::Index block = options_.block_columns;
-  for (Eigen::Index j0 = 0; j0 < Z.rows(); j0 += block) {
-    const Eigen::Index k = std::min(block, Z.rows() - j0);
+  for (Eigen::Index j0 = 0; j0 < Zt.cols(); j0 += block) {
+    const Eigen::Index k = std::min(block, Zt.cols() - j0);
     work_rhs_.resize(m, 6 * k);
-    for (Eigen::Index t = 0; t < m; ++t) {
-      for (int c = 0; c < 6; ++c) {
-        for (Eigen::Index j = 0; j < k; ++j) work_rhs_(t, 6 * j + c) = Z(j0 + j, 6 * t + c);
+    for (Eigen::Index j = 0; j < k; ++j) {
+      for (Eigen::Index t = 0; t < m; ++t) {
+        for (int c = 0; c < 6; ++c) work_rhs_(t, 6 * j + c) = Zt(6 * t + c, j0 + j);
       }
     }
     scalar_pseudo_inverse(work_rhs_);
@@ -197,23 +197,24 @@ void WoodburySolver::apply_laplacian_pseudo_inverse(Eigen::Ref<Eigen::VectorXd> 
   }
 }
 
-WoodburyStatus WoodburySolver::set_constraint_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
-                                                   double nullspace_damping) {
+WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt,
+                                                              double relative_nullspace_damping) {
   factorised_ = false;
-  if (Z.cols() != size() || !Z.allFinite()) return WoodburyStatus::kInvalidInput;
-  if (!(nullspace_damping >= 0.0 && std::isfinite(nullspace_damping))) {
+  if (Zt.rows() != size() || !Zt.allFinite()) return WoodburyStatus::kInvalidInput;
+  if (!(relative_nullspace_damping >= 0.0 && std::isfinite(relative_nullspace_damping))) {
     return WoodburyStatus::kInvalidInput;
   }
-  const double k = std::sqrt(1.0 + nullspace_damping);
-  nullspace_scale_ = k;
-  const Eigen::Index r = Z.rows();
+  const Eigen::Index r = Zt.cols();
   const Eigen::Index m = num_tets_;
-  Z_ = Z;
+  Zt_ = std::move(Zt);
   // ZΨ (r x 6): Ψ's column c sums component c over the tets, / √m.
   const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
   Z_psi_.setZero(r, 6);
-  for (Eigen::Index t = 0; t < m; ++t) Z_psi_ += Z_.middleCols<6>(6 * t);
+  for (Eigen::Index t = 0; t < m; ++t) Z_psi_ += Zt_.middleRows<6>(6 * t).transpose();
   Z_psi_ *= inv_sqrt_m;
+  const double delta = relative_nullspace_damping * Z_psi_.squaredNorm() / 6.0 + 1e-12;
+  const double k = std::sqrt(1.0 + delta);
+  nullspace_scale_ = k;
 
   // With Y = L⁺Zᵀ (one Laplacian solve per row of Z, not two: (L²)⁺ = L⁺L⁺ and L⁺ symmetric),
   //   Z B⁻¹ Zᵀ = Z(L²)⁺Zᵀ − ZΨΨᵀZᵀ = YᵀY − (ZΨ)(ZΨ)ᵀ,  Z B⁻¹(kΨ) = −k ZΨ,  kΨᵀB⁻¹kΨ = −k²I,
@@ -221,7 +222,7 @@ WoodburyStatus WoodburySolver::set_constraint_rows(const Eigen::Ref<const Eigen:
   // is kept after this call.
   Clock::time_point start = Clock::now();
   Eigen::MatrixXd Y(size(), r);
-  laplacian_pseudo_inverse_of_rows(Z_, Y);
+  laplacian_pseudo_inverse_of_columns(Zt_, Y);
   base_solve_seconds_ = seconds_since(start);
 
   start = Clock::now();
@@ -257,17 +258,17 @@ WoodburyStatus WoodburySolver::solve(const Eigen::Ref<const Eigen::VectorXd>& h,
   Eigen::VectorXd u(size());
   const WoodburyStatus status = apply_base_inverse(h, u);
   if (status != WoodburyStatus::kOk) return status;
-  const Eigen::Index r = Z_.rows();
+  const Eigen::Index r = Zt_.cols();
   const double k = nullspace_scale_;
   const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(num_tets_));
   Eigen::VectorXd Zhat_u(r + 6);
-  Zhat_u.head(r).noalias() = Z_ * u;
+  Zhat_u.head(r).noalias() = Zt_.transpose() * u;
   Zhat_u.tail<6>().setZero();
   for (Eigen::Index t = 0; t < num_tets_; ++t) Zhat_u.tail<6>() += u.segment<6>(6 * t);
   Zhat_u.tail<6>() *= k * inv_sqrt_m;
   const Eigen::VectorXd c = capacitance_.solve(Zhat_u);
   // B⁻¹Ẑᵀc = (L²)⁺Zᵀc₁ − Ψ(ZΨ)ᵀc₁ − kΨc₂.
-  Eigen::VectorXd correction = Z_.transpose() * c.head(r);
+  Eigen::VectorXd correction = Zt_ * c.head(r);
   apply_laplacian_pseudo_inverse(correction);
   apply_laplacian_pseudo_inverse(correction);
   const Eigen::Matrix<double, 6, 1> nullspace_part =
@@ -278,17 +279,17 @@ WoodburyStatus WoodburySolver::solve(const Eigen::Ref<const Eigen::VectorXd>& h,
 }
 
 void apply_gauss_newton_hessian(const Eigen::SparseMatrix<double>& L,
-                                const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                const Eigen::Ref<const Eigen::MatrixXd>& Zt,
                                 const Eigen::Ref<const Eigen::VectorXd>& v,
                                 Eigen::Ref<Eigen::VectorXd> out) {
   const Eigen::VectorXd Lv = L * v;
   out.noalias() = L * Lv;
-  const Eigen::VectorXd Zv = Z * v;
-  out.noalias() += Z.transpose() * Zv;
+  const Eigen::VectorXd Zv = Zt.transpose() * v;
+  out.noalias() += Zt * Zv;
 }
 
 ConjugateGradientSummary conjugate_gradient_solve(const Eigen::SparseMatrix<double>& L,
-                                                  const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                                  const Eigen::Ref<const Eigen::MatrixXd>& Zt,
                                                   const Eigen::Ref<const Eigen::VectorXd>& h,
                                                   Eigen::Ref<Eigen::VectorXd> y,
                                                   const ConjugateGradientOptions& options) {
@@ -310,7 +311,7 @@ ConjugateGradientSummary conjugate_gradient_solve(const Eigen::SparseMatrix<doub
         seconds_since(start) > options.max_seconds) {
       break;
     }
-    apply_gauss_newton_hessian(L, Z, direction, H_direction);
+    apply_gauss_newton_hessian(L, Zt, direction, H_direction);
     const double curvature = direction.dot(H_direction);
     if (!(curvature > 0.0)) break;
     const double step = residual_sq / curvature;
@@ -323,7 +324,7 @@ ConjugateGradientSummary conjugate_gradient_solve(const Eigen::SparseMatrix<doub
   }
   // The true residual (the recursive one drifts in long runs).
   Eigen::VectorXd Hy(h.size());
-  apply_gauss_newton_hessian(L, Z, y, Hy);
+  apply_gauss_newton_hessian(L, Zt, y, Hy);
   summary.relative_residual = (h - Hy).norm() / h_norm;
   summary.converged = summary.relative_residual <= 10.0 * options.relative_tolerance;
   summary.seconds = seconds_since(start);

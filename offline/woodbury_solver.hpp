@@ -45,14 +45,14 @@ enum class WoodburyStatus {
   kInvalidInput,         ///< sizes do not match, NaN / infinity, or no mesh
   kFactorisationFailed,  ///< CHOLMOD could not factorise the grounded Laplacian
   kSingularCapacitance,  ///< I + ẐB⁻¹Ẑᵀ is singular: H is (numerically) singular
-  kNotFactorised,        ///< solve() before a successful set_constraint_rows()
+  kNotFactorised,        ///< solve() before a successful set_constraint_rows_transposed()
 };
 const char* to_string(WoodburyStatus status);
 
 /// Solves H y = h by eq. 14. create() factorises the grounded scalar Laplacian once;
-/// set_constraint_rows(Z) forms the capacitance from Y = L⁺Zᵀ (one Laplacian solve per row of Z,
-/// since (L²)⁺ = L⁺L⁺) as I + YᵀY − … and LU-factorises it; solve(h) is then four single-column
-/// Laplacian solves, two thin products with Z and one small LU solve.
+/// set_constraint_rows_transposed(Zᵀ) forms the capacitance from Y = L⁺Zᵀ (one Laplacian solve per
+/// row of Z, since (L²)⁺ = L⁺L⁺) as I + YᵀY − … and LU-factorises it; solve(h) is then four
+/// single-column Laplacian solves, two thin products with Z and one small LU solve.
 class WoodburySolver {
  public:
   /// adjacency: face adjacency of the m tets (tet_face_adjacency); it must be ok() and connected.
@@ -70,17 +70,23 @@ class WoodburySolver {
   WoodburyStatus apply_squared_laplacian_pseudo_inverse(const Eigen::Ref<const Eigen::MatrixXd>& V,
                                                         Eigen::Ref<Eigen::MatrixXd> out);
 
-  /// Prepares the solve for H = L² + ZᵀZ + δΨΨᵀ with Z (r x 6m). δ ≥ 0 damps only the six
-  /// constant-strain modes (Ψ, the nullspace of L), where H is singular when the constraints do
-  /// not see a uniform change of s (e.g. stiff attachments alone); it enters as Ẑ's last six rows
+  /// Prepares the solve for H = L² + ZᵀZ + δΨΨᵀ, given Zᵀ (6m x r: the constraint rows as
+  /// columns, the layout constraint_jacobian produces; taken by value, pass it with std::move to
+  /// avoid a copy of what is 1.3 GB at 30k tets and 900 rows). δ ≥ 0 damps only the six
+  /// constant-strain modes (Ψ, the nullspace of L), where H is singular when the constraints do not
+  /// see a uniform change of s (e.g. stiff attachments alone):
+  ///   δ = relative_nullspace_damping·‖ZΨ‖²_F/6 + 1e-12,
+  /// i.e. relative to the constraints' own curvature along Ψ. It enters as Ẑ's last six rows
   /// √(1 + δ)·Ψᵀ, so B is unchanged.
-  WoodburyStatus set_constraint_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
-                                     double nullspace_damping = 0.0);
+  WoodburyStatus set_constraint_rows_transposed(Eigen::MatrixXd Zt,
+                                                double relative_nullspace_damping = 0.0);
+  /// δ of the last set_constraint_rows_transposed().
+  double nullspace_damping() const { return nullspace_scale_ * nullspace_scale_ - 1.0; }
   /// y = H⁻¹ h (6m); y must be 6m and not alias h.
   WoodburyStatus solve(const Eigen::Ref<const Eigen::VectorXd>& h, Eigen::Ref<Eigen::VectorXd> y);
 
-  /// Seconds of the last set_constraint_rows(): Y = L⁺Zᵀ (Laplacian solves) and the capacitance
-  /// (the product YᵀY and the LU).
+  /// Seconds of the last set_constraint_rows_transposed(): Y = L⁺Zᵀ (Laplacian solves) and the
+  /// capacitance (the product YᵀY and the LU).
   double base_solve_seconds() const { return base_solve_seconds_; }
   double capacitance_seconds() const { return capacitance_seconds_; }
   /// Seconds of the one-off factorisation in create().
@@ -94,16 +100,16 @@ class WoodburySolver {
                                     Eigen::Ref<Eigen::MatrixXd> out);
   // In place: columns of U (m x k) ← L^sc⁺ U.
   void scalar_pseudo_inverse(Eigen::MatrixXd& U);
-  // Y (6m x r) = L⁺Zᵀ for the rows of Z (r x 6m), in blocks of block_columns rows.
-  void laplacian_pseudo_inverse_of_rows(const Eigen::Ref<const Eigen::MatrixXd>& Z,
-                                        Eigen::Ref<Eigen::MatrixXd> Y);
+  // Y (6m x r) = L⁺Zᵀ for the columns of Zt (6m x r), in blocks of block_columns columns.
+  void laplacian_pseudo_inverse_of_columns(const Eigen::Ref<const Eigen::MatrixXd>& Zt,
+                                           Eigen::Ref<Eigen::MatrixXd> Y);
   // In place: v (6m) ← L⁺v.
   void apply_laplacian_pseudo_inverse(Eigen::Ref<Eigen::VectorXd> v);
 
   WoodburySolverOptions options_;
   Eigen::Index num_tets_ = 0;
   SparseCholesky grounded_;       // L^sc without row/column 0
-  Eigen::MatrixXd Z_;             // r x 6m, the rows of the last set_constraint_rows()
+  Eigen::MatrixXd Zt_;            // 6m x r: Zᵀ of the last set_constraint_rows_transposed()
   Eigen::MatrixXd Z_psi_;         // r x 6: ZΨ
   double nullspace_scale_ = 1.0;  // √(1 + δ)
   Eigen::PartialPivLU<Eigen::MatrixXd> capacitance_;
@@ -115,9 +121,9 @@ class WoodburySolver {
   double factorisation_seconds_ = 0.0;
 };
 
-/// H v = L(Lv) + Zᵀ(Zv) into out (6m). L: the 6m x 6m plastic-strain Laplacian; Z: r x 6m.
+/// H v = L(Lv) + Zᵀ(Zv) into out (6m). L: the 6m x 6m plastic-strain Laplacian; Zt: Zᵀ, 6m x r.
 void apply_gauss_newton_hessian(const Eigen::SparseMatrix<double>& L,
-                                const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                const Eigen::Ref<const Eigen::MatrixXd>& Zt,
                                 const Eigen::Ref<const Eigen::VectorXd>& v,
                                 Eigen::Ref<Eigen::VectorXd> out);
 
@@ -136,9 +142,9 @@ struct ConjugateGradientSummary {
   double seconds = 0.0;
 };
 
-/// Unpreconditioned conjugate gradients on H y = h (Table 1's CG), from y = 0.
+/// Unpreconditioned conjugate gradients on H y = h (Table 1's CG), from y = 0. Zt: Zᵀ, 6m x r.
 ConjugateGradientSummary conjugate_gradient_solve(const Eigen::SparseMatrix<double>& L,
-                                                  const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                                                  const Eigen::Ref<const Eigen::MatrixXd>& Zt,
                                                   const Eigen::Ref<const Eigen::VectorXd>& h,
                                                   Eigen::Ref<Eigen::VectorXd> y,
                                                   const ConjugateGradientOptions& options = {});

@@ -70,7 +70,7 @@ TEST(WoodburySolver, MatchesADenseSolveAndConjugateGradients) {
   // 5 markers (15 rows), scaled like constraint rows that dominate the Laplacian.
   const Eigen::MatrixXd Z = 30.0 * random_matrix(15, 6 * system.m, 2);
   const Eigen::VectorXd h = random_matrix(6 * system.m, 1, 3);
-  ASSERT_EQ(solver->set_constraint_rows(Z), WoodburyStatus::kOk);
+  ASSERT_EQ(solver->set_constraint_rows_transposed(Z.transpose()), WoodburyStatus::kOk);
   Eigen::VectorXd y(h.size());
   ASSERT_EQ(solver->solve(h, y), WoodburyStatus::kOk);
 
@@ -79,11 +79,13 @@ TEST(WoodburySolver, MatchesADenseSolveAndConjugateGradients) {
   EXPECT_LT((y - dense).norm() / dense.norm(), 1e-8);
   EXPECT_LT((H * y - h).norm() / h.norm(), 1e-8);
 
-  // With the nullspace damping δΨΨᵀ.
-  ASSERT_EQ(solver->set_constraint_rows(Z, 0.5), WoodburyStatus::kOk);
+  // With the nullspace damping δΨΨᵀ, δ = 0.5·‖ZΨ‖²/6 + 1e-12.
+  ASSERT_EQ(solver->set_constraint_rows_transposed(Z.transpose(), 0.5), WoodburyStatus::kOk);
+  const double delta = 0.5 * (Z * system.Psi).squaredNorm() / 6.0 + 1e-12;
+  EXPECT_NEAR(solver->nullspace_damping(), delta, 1e-9 * delta);
   Eigen::VectorXd damped(h.size());
   ASSERT_EQ(solver->solve(h, damped), WoodburyStatus::kOk);
-  const Eigen::MatrixXd H_damped = H + 0.5 * system.Psi * system.Psi.transpose();
+  const Eigen::MatrixXd H_damped = H + delta * system.Psi * system.Psi.transpose();
   EXPECT_LT((H_damped * damped - h).norm() / h.norm(), 1e-8);
   EXPECT_GT((damped - y).norm(), 1e-6 * y.norm());
 
@@ -91,7 +93,7 @@ TEST(WoodburySolver, MatchesADenseSolveAndConjugateGradients) {
   ConjugateGradientOptions cg_options;
   cg_options.relative_tolerance = 1e-10;
   const ConjugateGradientSummary summary =
-      conjugate_gradient_solve(system.laplacian.matrix, Z, h, cg, cg_options);
+      conjugate_gradient_solve(system.laplacian.matrix, Z.transpose(), h, cg, cg_options);
   EXPECT_LT(summary.relative_residual, 1e-8);
   EXPECT_GT(summary.iterations, 10);
   EXPECT_LT((cg - y).norm() / y.norm(), 1e-6);
@@ -117,11 +119,11 @@ TEST(WoodburySolver, BadInputsAreStatuses) {
   ASSERT_TRUE(solver.has_value());
   Eigen::VectorXd y(6 * system.m);
   EXPECT_EQ(solver->solve(Eigen::VectorXd::Ones(6 * system.m), y), WoodburyStatus::kNotFactorised);
-  EXPECT_EQ(solver->set_constraint_rows(Eigen::MatrixXd::Ones(3, 5)),
+  EXPECT_EQ(solver->set_constraint_rows_transposed(Eigen::MatrixXd::Ones(5, 3)),
             WoodburyStatus::kInvalidInput);
-  Eigen::MatrixXd nan_rows = Eigen::MatrixXd::Ones(3, 6 * system.m);
-  nan_rows(1, 2) = std::nan("");
-  EXPECT_EQ(solver->set_constraint_rows(nan_rows), WoodburyStatus::kInvalidInput);
+  Eigen::MatrixXd nan_rows = Eigen::MatrixXd::Ones(6 * system.m, 3);
+  nan_rows(2, 1) = std::nan("");
+  EXPECT_EQ(solver->set_constraint_rows_transposed(nan_rows), WoodburyStatus::kInvalidInput);
 }
 
 }  // namespace
