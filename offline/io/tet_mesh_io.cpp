@@ -14,8 +14,11 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <locale>
 #include <new>
 #include <sstream>
+
+#include "offline/io/io_common.hpp"
 
 namespace sinew::offline {
 namespace {
@@ -699,17 +702,27 @@ std::string xml_escape(const std::string& s) {
 
 bool write_vtu(const std::string& path, const TetMesh& mesh, const TetScalarFields& cell_fields,
                std::string* error) {
+  TetCellFields fields;
+  fields.reserve(cell_fields.size());
+  for (const auto& [name, values] : cell_fields) fields.push_back({name, values});
+  return write_vtu_cell_fields(path, mesh, fields, error);
+}
+
+bool write_vtu_cell_fields(const std::string& path, const TetMesh& mesh,
+                           const TetCellFields& cell_fields, std::string* error) {
   try {
     if (!check_mesh_for_write(path, mesh, error)) return false;
-    for (const auto& [name, values] : cell_fields) {
-      if (values.size() != mesh.tets.rows())
-        return fail_write(error, path + ": cannot write: field '" + name + "' has " +
-                                     std::to_string(values.size()) + " values for " +
+    for (const TetCellField& field : cell_fields) {
+      if (field.values.rows() != mesh.tets.rows())
+        return fail_write(error, path + ": cannot write: field '" + field.name + "' has " +
+                                     std::to_string(field.values.rows()) + " values for " +
                                      std::to_string(mesh.tets.rows()) + " tets");
+      if (field.values.cols() < 1)
+        return fail_write(error,
+                          path + ": cannot write: field '" + field.name + "' has no components");
     }
-    std::ofstream out(path, std::ios::binary);
-    if (!out)
-      return fail_write(error, path + ": cannot open for writing (" + std::strerror(errno) + ")");
+    std::ostringstream out;
+    out.imbue(std::locale::classic());
     out.precision(std::numeric_limits<double>::max_digits10);
     const Eigen::Index nv = mesh.vertices.rows(), nt = mesh.tets.rows();
     out << "<?xml version=\"1.0\"?>\n"
@@ -741,11 +754,26 @@ bool write_vtu(const std::string& path, const TetMesh& mesh, const TetScalarFiel
     out << "        </DataArray>\n"
         << "      </Cells>\n";
     if (!cell_fields.empty()) {
-      out << "      <CellData Scalars=\"" << xml_escape(cell_fields.front().first) << "\">\n";
-      for (const auto& [name, values] : cell_fields) {
-        out << "        <DataArray type=\"Float64\" Name=\"" << xml_escape(name)
-            << "\" format=\"ascii\">\n";
-        for (Eigen::Index t = 0; t < nt; ++t) out << "          " << values[t] << "\n";
+      // The Scalars attribute names the active scalar field; name the first one-component field.
+      std::string active;
+      for (const TetCellField& field : cell_fields) {
+        if (field.values.cols() == 1) {
+          active = field.name;
+          break;
+        }
+      }
+      out << "      <CellData";
+      if (!active.empty()) out << " Scalars=\"" << xml_escape(active) << "\"";
+      out << ">\n";
+      for (const TetCellField& field : cell_fields) {
+        out << "        <DataArray type=\"Float64\" Name=\"" << xml_escape(field.name) << "\"";
+        if (field.values.cols() > 1) out << " NumberOfComponents=\"" << field.values.cols() << "\"";
+        out << " format=\"ascii\">\n";
+        for (Eigen::Index t = 0; t < nt; ++t) {
+          out << "          " << field.values(t, 0);
+          for (Eigen::Index c = 1; c < field.values.cols(); ++c) out << " " << field.values(t, c);
+          out << "\n";
+        }
         out << "        </DataArray>\n";
       }
       out << "      </CellData>\n";
@@ -753,9 +781,7 @@ bool write_vtu(const std::string& path, const TetMesh& mesh, const TetScalarFiel
     out << "    </Piece>\n"
         << "  </UnstructuredGrid>\n"
         << "</VTKFile>\n";
-    out.close();
-    if (!out) return fail_write(error, path + ": write error");
-    return true;
+    return io::detail::write_file_atomically(path, out.str(), error);
   } catch (const std::exception& e) {
     return fail_write(error, path + ": " + e.what());
   }

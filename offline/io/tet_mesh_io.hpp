@@ -48,14 +48,29 @@ TetMeshReadResult read_tet_mesh(const std::string& path, const TetMeshReadOption
 /// Per-tet scalar fields for write_vtu: (name, one value per tet).
 using TetScalarFields = std::vector<std::pair<std::string, Eigen::VectorXd>>;
 
+/// A per-tet field with one or more components for write_vtu: values is #T by k (k = 1 scalar,
+/// 3 vector, 9 tensor in row-major order as ParaView reads it).
+struct TetCellField {
+  std::string name;
+  Eigen::MatrixXd values;
+};
+using TetCellFields = std::vector<TetCellField>;
+
 /// Writes a Medit ASCII `.mesh` (MeshVersionFormatted 1, Dimension 3, Vertices, Tetrahedra; labels
 /// 0; full double precision). Returns false and sets *error (if given) on failure.
 bool write_medit_mesh(const std::string& path, const TetMesh& mesh, std::string* error = nullptr);
 
 /// Writes an ASCII VTK XML UnstructuredGrid (`.vtu`): Points, Cells (connectivity, offsets,
 /// types = 10, VTK_TETRA) and one CellData Float64 DataArray per field. Each field must have one
-/// value per tet. Returns false and sets *error (if given) on failure.
+/// value per tet. Atomic (temporary file + rename). Returns false and sets *error (if given) on
+/// failure.
 bool write_vtu(const std::string& path, const TetMesh& mesh,
                const TetScalarFields& cell_fields = {}, std::string* error = nullptr);
+
+/// write_vtu with multi-component cell data: one CellData Float64 DataArray per field, with
+/// NumberOfComponents = values.cols() (written when > 1). Atomic like write_vtu. (A name of its
+/// own: a braced {{"name", values}} list would be ambiguous between two write_vtu overloads.)
+bool write_vtu_cell_fields(const std::string& path, const TetMesh& mesh,
+                           const TetCellFields& cell_fields, std::string* error = nullptr);
 
 }  // namespace sinew::offline

@@ -203,6 +203,39 @@ TEST(TetMeshIo, VtuContainsCountsAndFields) {
   EXPECT_NE(error.find("field 'short' has 3 values for 48 tets"), std::string::npos) << error;
 }
 
+TEST(TetMeshIo, VtuWritesMultiComponentCellFields) {
+  const auto dir = scratch_dir("tet_mesh_io_vtu_tensor");
+  const TetMesh box = box_mesh();
+  Eigen::MatrixXd Fp(48, 9);
+  for (int t = 0; t < 48; ++t) Fp.row(t) << 1 + t, 0, 0, 0, 2, 0, 0, 0, 3;
+  const Eigen::MatrixXd stretches = Eigen::MatrixXd::Constant(48, 3, 1.5);
+  std::string error;
+  ASSERT_TRUE(sinew::offline::write_vtu_cell_fields(
+      (dir / "tensor.vtu").string(), box,
+      {{"Fp", Fp}, {"stretches", stretches}, {"id", Eigen::VectorXd::LinSpaced(48, 0, 47)}},
+      &error))
+      << error;
+  EXPECT_FALSE(std::filesystem::exists(dir / "tensor.vtu.tmp"));
+  const std::string text = sinew::testing::read_text(dir / "tensor.vtu");
+  EXPECT_NE(text.find("<CellData Scalars=\"id\">"), std::string::npos);
+  EXPECT_NE(text.find("Name=\"Fp\" NumberOfComponents=\"9\""), std::string::npos);
+  EXPECT_NE(text.find("Name=\"stretches\" NumberOfComponents=\"3\""), std::string::npos);
+  // Tet 47's row of Fp, all nine components on one line.
+  EXPECT_NE(text.find(" 48 0 0 0 2 0 0 0 3\n"), std::string::npos);
+  // The Fp block holds 9 · 48 numbers.
+  const auto begin = text.find('>', text.find("Name=\"Fp\""));
+  const auto end = text.find("</DataArray>", begin);
+  std::istringstream values(text.substr(begin + 1, end - begin - 1));
+  int count = 0;
+  for (double v; values >> v;) ++count;
+  EXPECT_EQ(count, 9 * 48);
+  // A field with the wrong number of rows is refused and nothing is written.
+  EXPECT_FALSE(sinew::offline::write_vtu_cell_fields((dir / "bad.vtu").string(), box,
+                                                     {{"Fp", Fp.topRows(5)}}, &error));
+  EXPECT_NE(error.find("field 'Fp' has 5 values for 48 tets"), std::string::npos) << error;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.vtu"));
+}
+
 TEST(TetMeshIo, VegOneTetReads) {
   const auto dir = scratch_dir("tet_mesh_io_veg_one");
   write_text(dir / "one.veg", kOneTetVeg + "\n*SET s\n1\n*MATERIAL m\nENU, 1, 2, 0.3\n");

@@ -1,0 +1,115 @@
+#pragma once
+/// The case file of sinew-register (seed 003: register a template organ to sparse scan markers),
+/// parsed into typed structs. Every error is an InputError whose what() is ONE line naming the file
+/// and the line:column (JSON syntax), the field (JSON path) or the line of a marker file.
+///
+/// Schema (keys other than these are errors, to catch typos):
+/// {
+///   "template": "liver.obj",        // surface .obj/.off/.stl/.ply (closed; tet-meshed by CGAL) or
+///                                   // tet mesh .mesh/.veg/.node/.ele; relative to the case file
+///   "units": "mm",                  // optional: "mm" or "m"; labels the report and scales 3D
+///                                   // Slicer files (.fcsv, .mrk.json: millimetres) to metres
+///   "mesh": {                       // optional, surface templates only (offline/meshing)
+///     "cell_size_fraction": 0.06,   // tet circumradius bound / bounding-box diagonal
+///     "facet_distance_fraction": 0.002, "facet_angle_degrees": 25, "cell_radius_edge_ratio": 3,
+///     "odt": true, "lloyd": false, "perturb": true, "exude": true, "sliver_bound_degrees": 12,
+///     "protect_sharp_features": false, "random_seed": 0, "max_vertices": 2000000,
+///     "optimisation_time_limit_seconds": 0  // caps sliver perturbation/exudation (0: none)
+///   },
+///   "attachments": PAIRS,           // required: material points fixed to bone etc. (§3.3)
+///   "landmarks": PAIRS,             // optional: points with known correspondence
+///   "icp_markers": POINTS,          // optional: scan points without correspondence (ICP)
+///   "weights": {                    // optional; in the normalised frame (see below)
+///     "alpha": 1e5, "beta": 1e4 or 0 (see RegistrationWeights), "attachment_stiffness": 10
+///   },
+///   "stop": {                       // optional
+///     "max_iterations": 20,         // Gauss–Newton iterations per stage
+///     "max_marker_error": 0.5,      // stop the ICP stage when every marker is this close (case
+///                                   // units); default 0.1% of the template's diagonal
+///     "min_step": 0.01              // stop a stage when the line search's η is below this
+///   }
+/// }
+/// PAIRS: [{"template": [x, y, z], "target": [x, y, z], "label": "..." (optional)}, ...], or a file
+///   name (.json/.csv/.txt of point pairs, offline/io/point_list_io.hpp), or
+///   {"template": FILE, "target": FILE}: two point lists (.csv, .json, .mrk.json, .fcsv) matched by
+///   order.
+/// POINTS: [[x, y, z], ...] or a point-list file (.csv, .txt, .json, .mrk.json, .fcsv).
+///
+/// Normalised frame: the tool translates the template's bounding-box centre to the origin and
+/// scales its diagonal to 1, with a unit material (μ = 1, ν = 0.4). alpha weighs the squared marker
+/// misfit (in diagonals²) against the dimensionless plastic-strain smoothness ½‖L s‖², beta the
+/// attachment misfit; attachment_stiffness is the spring constant of each attachment in units of
+/// μ·diagonal (appendix G: scaling the stiffness is equivalent to scaling the weights). The same
+/// numbers therefore suit a liver in millimetres and a bar in metres.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "offline/meshing/tet_mesher.hpp"
+
+namespace sinew::tools {
+
+enum class LengthUnit {
+  kUnspecified,  ///< no "units" key: lengths are reported in the template's units
+  kMillimetre,
+  kMetre,
+};
+
+/// "mm", "m" or "" (unspecified).
+const char* to_string(LengthUnit unit);
+
+/// Corresponding points in the case's units: template_points.row(i) is a material point of the
+/// template (on or near it) that should move to target_points.row(i).
+struct PointPairSet {
+  Eigen::MatrixXd template_points;  ///< #P by 3
+  Eigen::MatrixXd target_points;    ///< #P by 3
+  std::vector<std::string> labels;  ///< one per pair (maybe ""), or empty
+  /// Where they came from, for messages: "case.json: attachments" or the file's path.
+  std::string source;
+  Eigen::Index size() const { return template_points.rows(); }
+};
+
+struct RegistrationWeights {
+  double alpha = 1e5;  ///< landmarks and ICP markers, per diagonal² of misfit; > 0
+  /// Attachments in the objective, per diagonal²; ≥ 0. Default: 1e4 when attachments are the
+  /// only observations; 0 with landmarks or ICP markers, where the stiff springs already meet the
+  /// attachments and an attachment-only stage would only undo the constant initial fit (its
+  /// Gauss–Newton step moves the uniform plastic modes the springs hardly see).
+  std::optional<double> beta;
+  double attachment_stiffness = 10;  ///< spring of each attachment, μ·diagonal; > 0
+};
+
+struct RegistrationStop {
+  int max_iterations_per_stage = 20;  ///< ≥ 0
+  /// ICP stop tolerance in the case's units; std::nullopt: 0.1% of the template's diagonal.
+  std::optional<double> max_marker_error;
+  double min_step = 0.01;  ///< in [0, 1)
+};
+
+struct RegistrationCase {
+  std::string case_path;      ///< as given on the command line
+  std::string template_path;  ///< resolved against the case file's folder
+  bool template_is_tet_mesh = false;
+  LengthUnit units = LengthUnit::kUnspecified;
+  offline::TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
+  bool mesh_options_given = false;
+  PointPairSet attachments;
+  PointPairSet landmarks;          ///< empty when absent
+  Eigen::MatrixXd icp_markers;     ///< #M by 3 (0 rows when absent)
+  std::string icp_markers_source;  ///< as PointPairSet::source
+  std::string coordinate_system;   ///< "RAS"/"LPS" when a marker file said so, else ""
+  std::vector<std::string> notes;  ///< things the user should know (conversions, skipped points)
+  RegistrationWeights weights;
+  RegistrationStop stop;
+};
+
+/// Reads and validates a case file and every marker file it names (the template itself is read
+/// by the caller). Throws InputError (tools/io/json_file.hpp) with a one-line message.
+RegistrationCase read_registration_case(const std::string& path);
+
+/// True for the tet-mesh extensions .mesh, .veg, .node, .ele (case-insensitive).
+bool is_tet_mesh_path(const std::string& path);
+
+}  // namespace sinew::tools

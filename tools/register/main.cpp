@@ -1,0 +1,482 @@
+// sinew-register: plastic-strain registration of a template organ to sparse scan markers (seed
+// 003, Wang, Matcuk & Barbič): tet-mesh the template, embed the attachments, landmarks and the
+// template's surface vertices in it, run the staged Gauss–Newton registration and write
+//   OUTDIR/result_surface.obj  the deformed template surface (same vertices and triangles as the
+//                              template surface; for a tet-mesh template, its boundary)
+//   OUTDIR/result.vtu          the deformed tet mesh with per-tet Fp (9), principal stretches (3)
+//                              and det Fp as cell data, for ParaView
+//   OUTDIR/report.json         per-iteration log, totals, termination, inputs and mesh quality
+//
+//   sinew-register --case case.json --out OUTDIR [--quiet] [--max-iterations N]
+//
+// The case file is described in tools/register/case_file.hpp. The geometry is normalised (bounding-
+// box centre at the origin, diagonal 1, unit material) so the defaults fit millimetres and metres;
+// results are mapped back to the case's units.
+// Exit status: 0 registered; 1 outputs written but the registration failed (report.json says
+// why; no result files); 2 bad input or usage (one line on stderr naming the file, nothing
+// written).
+#include <fmt/core.h>
+#include <CLI/CLI.hpp>
+#include <Eigen/Eigenvalues>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/material/stable_neo_hookean.hpp"
+#include "offline/constraints.hpp"
+#include "offline/gauss_newton.hpp"
+#include "offline/io/surface_mesh_io.hpp"
+#include "offline/io/tet_mesh_io.hpp"
+#include "offline/meshing/tet_mesher.hpp"
+#include "offline/plastic_elastic_energy.hpp"
+#include "offline/plastic_strain.hpp"
+#include "offline/surface_closest_point.hpp"
+#include "tools/io/json_file.hpp"
+#include "tools/register/case_file.hpp"
+
+namespace {
+
+using namespace sinew;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Template points farther than this from the tet mesh (in diagonals) are input errors: almost
+// always a point in another frame or unit.
+constexpr double kMaxEmbeddingDistance = 0.1;
+
+class Log {
+ public:
+  explicit Log(bool quiet) : quiet_(quiet) {}
+  template <typename... Args>
+  void line(fmt::format_string<Args...> format, Args&&... args) const {
+    if (quiet_) return;
+    fmt::print(format, std::forward<Args>(args)...);
+    std::fputc('\n', stdout);
+    std::fflush(stdout);
+  }
+
+ private:
+  bool quiet_;
+};
+
+// x_normalised = (x − centre) / scale.
+struct Normalisation {
+  Eigen::RowVector3d centre = Eigen::RowVector3d::Zero();
+  double scale = 1.0;
+  // Rounded to multiples of 2⁻⁴⁰ (1e-12 of the diagonal) so that the same case in millimetres and
+  // in metres gives bitwise the same normalised input, hence the same tet mesh (CGAL's
+  // refinement is not continuous in its input).
+  Eigen::MatrixXd to_frame(const Eigen::MatrixXd& points) const {
+    const double grid = std::ldexp(1.0, 40);
+    return ((points.rowwise() - centre) / scale * grid).array().round() / grid;
+  }
+  Eigen::MatrixXd to_user(const Eigen::MatrixXd& points) const {
+    return (points * scale).rowwise() + centre;
+  }
+};
+
+// Embeds template points (normalised) in the tet mesh; far points are input errors.
+std::vector<offline::EmbeddedPoint> embed(const offline::TetPointLocator& locator,
+                                          const Eigen::MatrixXd& points, const std::string& what,
+                                          const std::string& source, double scale,
+                                          const std::string& unit, double* worst_distance) {
+  std::vector<offline::EmbeddedPoint> out;
+  out.reserve(static_cast<std::size_t>(points.rows()));
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const offline::Embedding e = locator.locate(points.row(i).transpose());
+    if (!e.ok() || e.distance > kMaxEmbeddingDistance) {
+      throw tools::InputError(fmt::format(
+          "{}: {}[{}]: template point is {:.4g}{} from the template mesh ({:.1f}% of its "
+          "diagonal); is it in the template's frame and units?",
+          source, what, i, e.distance * scale, unit, 100 * e.distance));
+    }
+    *worst_distance = std::max(*worst_distance, e.distance);
+    out.push_back(e.point);
+  }
+  return out;
+}
+
+Eigen::MatrixXd positions(const Eigen::VectorXd& x) {
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(
+      x.data(), x.size() / 3, 3);
+}
+
+nlohmann::json mesher_json(const offline::TetMesherSummary& s) {
+  nlohmann::json j;
+  j["status"] = offline::to_string(s.status);
+  j["vertices"] = s.num_vertices;
+  j["tets"] = s.num_tets;
+  j["boundary_faces"] = s.num_boundary_faces;
+  j["input_inward_oriented"] = s.input_inward_oriented;
+  j["flipped_tets"] = s.flipped_tets;
+  if (s.min_dihedral_degrees) j["min_dihedral_degrees"] = *s.min_dihedral_degrees;
+  if (s.max_dihedral_degrees) j["max_dihedral_degrees"] = *s.max_dihedral_degrees;
+  if (s.min_radius_ratio) j["min_radius_ratio"] = *s.min_radius_ratio;
+  if (s.mean_radius_ratio) j["mean_radius_ratio"] = *s.mean_radius_ratio;
+  j["time_limit_reached"] = s.time_limit_reached;
+  j["seconds"] = s.seconds;
+  return j;
+}
+
+struct Outputs {
+  fs::path dir;
+  fs::path surface() const { return dir / "result_surface.obj"; }
+  fs::path vtu() const { return dir / "result.vtu"; }
+  fs::path report() const { return dir / "report.json"; }
+};
+
+// Creates OUTDIR (after every input check) and proves it writable before the long run.
+void prepare_output_dir(const Outputs& out) {
+  std::error_code ec;
+  if (fs::exists(out.dir, ec) && !fs::is_directory(out.dir, ec))
+    throw tools::InputError(out.dir.string() + ": exists and is not a folder");
+  fs::create_directories(out.dir, ec);
+  if (ec)
+    throw tools::InputError(out.dir.string() + ": cannot create folder (" + ec.message() + ")");
+  const fs::path probe = out.dir / ".sinew-register-probe";
+  std::FILE* f = std::fopen(probe.c_str(), "wb");
+  if (f == nullptr) throw tools::InputError(out.dir.string() + ": folder is not writable");
+  std::fclose(f);
+  fs::remove(probe, ec);
+}
+
+int run(const std::string& case_path, const std::string& out_dir, bool quiet,
+        std::optional<int> max_iterations) {
+  const Clock::time_point run_start = Clock::now();
+  const Log log(quiet);
+  nlohmann::json phases;
+
+  // ---- reading
+  Clock::time_point start = Clock::now();
+  log.line("reading {}", case_path);
+  tools::RegistrationCase c = tools::read_registration_case(case_path);
+  if (max_iterations) c.stop.max_iterations_per_stage = *max_iterations;
+  const std::string unit = tools::to_string(c.units);
+  const std::string u = unit.empty() ? "" : " " + unit;
+
+  offline::io::SurfaceMesh surface;  // template surface (user units), when a surface was given
+  offline::TetMesh tet_mesh;         // user units until normalised below
+  nlohmann::json inputs;
+  inputs["template"] = c.template_path;
+  if (c.template_is_tet_mesh) {
+    offline::TetMeshReadResult r = offline::read_tet_mesh(c.template_path);
+    if (!r.ok()) throw tools::InputError(r.error);
+    tet_mesh = std::move(*r.mesh);
+    log.line("template: tet mesh, {} vertices, {} tets{}", tet_mesh.vertices.rows(),
+             tet_mesh.tets.rows(),
+             r.flipped_tets > 0 ? fmt::format(" ({} tets reoriented)", r.flipped_tets) : "");
+  } else {
+    offline::io::SurfaceMeshReadResult r = offline::io::read_surface_mesh(c.template_path);
+    if (!r.ok()) throw tools::InputError(r.error);
+    surface = std::move(*r.mesh);
+    log.line("template: surface, {} vertices, {} triangles{}", surface.vertices.rows(),
+             surface.triangles.rows(),
+             r.polygons_triangulated > 0
+                 ? fmt::format(" ({} polygons triangulated)", r.polygons_triangulated)
+                 : "");
+    inputs["template_triangles"] = surface.triangles.rows();
+  }
+  const Eigen::MatrixXd template_vertices =
+      c.template_is_tet_mesh ? Eigen::MatrixXd(tet_mesh.vertices) : surface.vertices;
+  inputs["template_vertices"] = template_vertices.rows();
+
+  Normalisation frame;
+  {
+    const Eigen::RowVector3d lo = template_vertices.colwise().minCoeff();
+    const Eigen::RowVector3d hi = template_vertices.colwise().maxCoeff();
+    frame.centre = 0.5 * (lo + hi);
+    frame.scale = (hi - lo).norm();
+    if (!(frame.scale > 0) || !std::isfinite(frame.scale))
+      throw tools::InputError(c.template_path + ": the template has no extent");
+  }
+  inputs["bounding_box_diagonal"] = frame.scale;
+  inputs["attachments"] = c.attachments.size();
+  inputs["landmarks"] = c.landmarks.size();
+  inputs["icp_markers"] = c.icp_markers.rows();
+  if (!c.coordinate_system.empty()) inputs["coordinate_system"] = c.coordinate_system;
+  inputs["notes"] = c.notes;
+  for (const std::string& note : c.notes) log.line("note: {}", note);
+  log.line("markers: {} attachments, {} landmarks, {} ICP markers; template diagonal {:.4g}{}",
+           c.attachments.size(), c.landmarks.size(), c.icp_markers.rows(), frame.scale, u);
+  phases["reading"] = seconds_since(start);
+
+  // ---- meshing (in the normalised frame)
+  start = Clock::now();
+  if (c.template_is_tet_mesh) {
+    tet_mesh.vertices = frame.to_frame(tet_mesh.vertices);
+  } else {
+    log.line("meshing: CGAL Mesh_3, cell size {:.3g} of the diagonal", c.mesh.cell_size_fraction);
+    const Eigen::MatrixXd v = frame.to_frame(surface.vertices);
+    offline::TetMesherResult meshed = offline::make_tet_mesh(v, surface.triangles, c.mesh);
+    if (!meshed.summary.ok()) {
+      throw tools::InputError(c.template_path + ": cannot tet-mesh the template surface: " +
+                              (meshed.summary.message.empty()
+                                   ? std::string(offline::to_string(meshed.summary.status))
+                                   : meshed.summary.message));
+    }
+    log.line("meshing: {}", meshed.summary.brief_report());
+    inputs["mesher"] = mesher_json(meshed.summary);
+    tet_mesh = std::move(meshed.mesh);
+  }
+  const Eigen::MatrixXd rest = tet_mesh.vertices;
+  const common::TetIndices tets = tet_mesh.tets;
+  inputs["tet_vertices"] = rest.rows();
+  inputs["tets"] = tets.rows();
+  phases["meshing"] = seconds_since(start);
+
+  // ---- embedding
+  start = Clock::now();
+  common::TetMeshCheck check;
+  auto locator = offline::TetPointLocator::create(rest, tets, {}, &check);
+  if (!locator) throw tools::InputError(c.template_path + ": the tet mesh is invalid");
+  double worst = 0.0;
+  offline::RegistrationConstraints constraints;
+  const double stiffness = c.weights.attachment_stiffness;
+  {
+    const auto points = embed(*locator, frame.to_frame(c.attachments.template_points),
+                              "attachments", c.attachments.source, frame.scale, u, &worst);
+    const Eigen::MatrixXd targets = frame.to_frame(c.attachments.target_points);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      offline::PointConstraint pc;
+      pc.kind = offline::ConstraintKind::kAttachment;
+      pc.point = points[i];
+      pc.target = targets.row(static_cast<Eigen::Index>(i)).transpose();
+      pc.weight = stiffness;
+      constraints.attachments.push_back(pc);
+    }
+  }
+  if (c.landmarks.size() > 0) {
+    const auto points = embed(*locator, frame.to_frame(c.landmarks.template_points), "landmarks",
+                              c.landmarks.source, frame.scale, u, &worst);
+    const Eigen::MatrixXd targets = frame.to_frame(c.landmarks.target_points);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      offline::PointConstraint pc;
+      pc.kind = offline::ConstraintKind::kLandmark;
+      pc.point = points[i];
+      pc.target = targets.row(static_cast<Eigen::Index>(i)).transpose();
+      constraints.landmarks.push_back(pc);
+    }
+  }
+  const Eigen::MatrixXd markers = frame.to_frame(c.icp_markers);
+  for (Eigen::Index i = 0; i < markers.rows(); ++i)
+    constraints.icp_markers.push_back(markers.row(i).transpose());
+
+  // The output surface: template surface vertices as material points, or the mesh boundary.
+  std::vector<offline::EmbeddedPoint> surface_points;
+  Eigen::MatrixXi surface_triangles;
+  std::vector<int> boundary_vertices;  // tet-mesh template: mesh vertex of each output vertex
+  double surface_worst = 0.0;
+  if (!c.template_is_tet_mesh) {
+    surface_points = embed(*locator, frame.to_frame(surface.vertices), "vertices", c.template_path,
+                           frame.scale, u, &surface_worst);
+    surface_triangles = surface.triangles;
+  }
+  offline::BoundaryCheck boundary_check;
+  auto boundary = offline::BoundarySurface::extract(rest.rows(), tets, &boundary_check);
+  if (!boundary) {
+    throw tools::InputError(c.template_path + ": tet mesh boundary: " + boundary_check.message());
+  }
+  if (c.template_is_tet_mesh) {
+    boundary_vertices = boundary->vertices();
+    std::vector<int> index(static_cast<std::size_t>(rest.rows()), -1);
+    for (std::size_t i = 0; i < boundary_vertices.size(); ++i)
+      index[static_cast<std::size_t>(boundary_vertices[i])] = static_cast<int>(i);
+    surface_triangles.resize(boundary->triangles().rows(), 3);
+    for (Eigen::Index f = 0; f < surface_triangles.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        surface_triangles(f, k) = index[static_cast<std::size_t>(boundary->triangles()(f, k))];
+  }
+  std::optional<offline::SurfaceClosestPoint> surface_query;
+  std::unique_ptr<offline::BoundaryClosestPoint> closest;
+  if (!constraints.icp_markers.empty()) {
+    surface_query = offline::SurfaceClosestPoint::create(rest.rows(), tets, &boundary_check);
+    if (!surface_query) throw tools::InputError(c.template_path + ": " + boundary_check.message());
+    closest = std::make_unique<offline::BoundaryClosestPoint>(*surface_query);
+  }
+  log.line(
+      "embedding: {} attachments, {} landmarks (farthest {:.3g}{} outside the mesh), {} "
+      "surface points (farthest {:.3g}{})",
+      constraints.attachments.size(), constraints.landmarks.size(), worst * frame.scale, u,
+      c.template_is_tet_mesh ? boundary_vertices.size() : surface_points.size(),
+      surface_worst * frame.scale, u);
+  inputs["embedding_max_distance"] = worst * frame.scale;
+  inputs["surface_embedding_max_distance"] = surface_worst * frame.scale;
+
+  // Unit material: μ = 1 (model), ν = 0.4 (E = 2μ_L(1 + ν) with μ_L = 3/4).
+  common::StableNeoHookeanParameters material_parameters;
+  material_parameters.poisson_ratio = 0.4;
+  material_parameters.youngs_modulus = 2.0 * 0.75 * (1.0 + material_parameters.poisson_ratio);
+  const auto material = common::StableNeoHookean::create(material_parameters);
+  auto energy = offline::PlasticElasticEnergy::create(rest, tets, *material, {}, &check);
+  if (!energy) throw tools::InputError(c.template_path + ": the tet mesh is invalid");
+  phases["embedding"] = seconds_since(start);
+
+  offline::GaussNewtonOptions options;
+  options.alpha = c.weights.alpha;
+  const bool observations = c.landmarks.size() > 0 || c.icp_markers.rows() > 0;
+  options.beta = c.weights.beta.value_or(observations ? 0.0 : 1e4);
+  options.max_iterations_per_stage = c.stop.max_iterations_per_stage;
+  const double max_marker_error = c.stop.max_marker_error.value_or(1e-3 * frame.scale);
+  options.max_marker_error = max_marker_error / frame.scale;
+  options.min_step = c.stop.min_step;
+  if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
+
+  // Every input is valid: only now does OUTDIR get created.
+  const Outputs out{fs::path(out_dir)};
+  prepare_output_dir(out);
+
+  // ---- registration
+  start = Clock::now();
+  log.line(
+      "registering: {} tets, {} plastic dofs, alpha {:g}, beta {:g}, attachment stiffness "
+      "{:g}, ICP tolerance {:.3g}{}",
+      tets.rows(), 6 * tets.rows(), options.alpha, options.beta, stiffness, max_marker_error, u);
+  const auto progress = [&](const offline::GaussNewtonIteration& it) {
+    log.line(
+        "  {:<11} {:>3}  objective {:.4e}  step {:.3f}  marker error mean {:.4g} max {:.4g}{}"
+        "  {:>2} solves  {:.1f} s",
+        offline::to_string(it.stage), it.iteration, it.objective, it.step,
+        it.marker_error_mean * frame.scale, it.marker_error_max * frame.scale, u,
+        it.equilibrium_solves, it.seconds);
+  };
+  const offline::RegistrationResult result =
+      offline::register_attached(*energy, constraints, closest.get(), options, progress);
+  const offline::GaussNewtonSummary& summary = result.summary;
+  phases["registration"] = seconds_since(start);
+  log.line("registration: {} ({}), final marker error mean {:.4g} max {:.4g}{}, {:.1f} s",
+           offline::to_string(summary.termination), summary.message.empty() ? "-" : summary.message,
+           summary.marker_error_mean * frame.scale, summary.marker_error_max * frame.scale, u,
+           summary.seconds);
+
+  // ---- outputs (each written atomically; the report last, so its presence means "done")
+  start = Clock::now();
+  nlohmann::json report;
+  report["tool"] = "sinew-register";
+  report["case"] = case_path;
+  report["length_unit"] = unit.empty() ? "template units" : unit;
+  report["inputs"] = inputs;
+  report["options"] = {{"alpha", options.alpha},
+                       {"beta", options.beta},
+                       {"attachment_stiffness", stiffness},
+                       {"max_iterations_per_stage", options.max_iterations_per_stage},
+                       {"max_marker_error", max_marker_error},
+                       {"min_step", options.min_step},
+                       {"mesh_cell_size_fraction", c.mesh.cell_size_fraction}};
+  nlohmann::json iterations = nlohmann::json::array();
+  for (const offline::GaussNewtonIteration& it : summary.iterations) {
+    iterations.push_back({{"stage", offline::to_string(it.stage)},
+                          {"iteration", it.iteration},
+                          {"objective", it.objective},
+                          {"objective_before", it.objective_before},
+                          {"step", it.step},
+                          {"marker_error_mean", it.marker_error_mean * frame.scale},
+                          {"marker_error_max", it.marker_error_max * frame.scale},
+                          {"equilibrium_solves", it.equilibrium_solves},
+                          {"clamped_tets", it.clamped_tets},
+                          {"seconds", it.seconds}});
+  }
+  report["iterations"] = iterations;
+  report["termination"] = offline::to_string(summary.termination);
+  report["message"] = summary.message;
+  report["usable"] = summary.usable();
+  report["final"] = {
+      {"stage", summary.iterations.empty() ? std::string("none")
+                                           : offline::to_string(summary.iterations.back().stage)},
+      {"objective", summary.final_objective},
+      {"initial_objective", summary.initial_objective},
+      {"marker_error_mean", summary.marker_error_mean * frame.scale},
+      {"marker_error_max", summary.marker_error_max * frame.scale}};
+
+  nlohmann::json written = nlohmann::json::array();
+  if (summary.usable()) {
+    // Deformed surface.
+    offline::io::SurfaceMesh deformed;
+    if (c.template_is_tet_mesh) {
+      deformed.vertices.resize(static_cast<Eigen::Index>(boundary_vertices.size()), 3);
+      for (std::size_t i = 0; i < boundary_vertices.size(); ++i)
+        deformed.vertices.row(static_cast<Eigen::Index>(i)) =
+            result.x.segment<3>(3 * boundary_vertices[i]).transpose();
+    } else {
+      deformed.vertices.resize(static_cast<Eigen::Index>(surface_points.size()), 3);
+      for (std::size_t i = 0; i < surface_points.size(); ++i)
+        deformed.vertices.row(static_cast<Eigen::Index>(i)) =
+            offline::embedded_position(tets, surface_points[i], result.x).transpose();
+    }
+    deformed.vertices = frame.to_user(deformed.vertices);
+    deformed.triangles = surface_triangles;
+    std::string error;
+    if (!offline::io::write_obj(out.surface().string(), deformed, &error))
+      throw std::runtime_error(error);
+    written.push_back(out.surface().string());
+
+    // Deformed tet mesh with the plastic field.
+    offline::TetMesh mesh;
+    mesh.vertices = frame.to_user(positions(result.x));
+    mesh.tets = tets;
+    Eigen::MatrixXd Fp(tets.rows(), 9), stretches(tets.rows(), 3);
+    Eigen::VectorXd det(tets.rows());
+    for (Eigen::Index t = 0; t < tets.rows(); ++t) {
+      const Eigen::Matrix3d F = offline::plastic_strain_matrix(result.s.segment<6>(6 * t));
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) Fp(t, 3 * i + j) = F(i, j);
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(F, Eigen::EigenvaluesOnly);
+      stretches.row(t) = eig.eigenvalues().transpose();
+      det[t] = F.determinant();
+    }
+    if (!offline::write_vtu_cell_fields(
+            out.vtu().string(), mesh,
+            {{"det_Fp", det}, {"Fp", Fp}, {"principal_stretches", stretches}}, &error))
+      throw std::runtime_error(error);
+    written.push_back(out.vtu().string());
+  }
+  phases["writing"] = seconds_since(start);
+  report["outputs"] = written;
+  report["totals"] = {{"iterations", summary.iterations.size()},
+                      {"equilibrium_solves", summary.equilibrium_solves},
+                      {"registration_seconds", summary.seconds},
+                      {"seconds", seconds_since(run_start)},
+                      {"phases", phases}};
+  tools::write_json_file(out.report().string(), report);
+  written.push_back(out.report().string());
+  for (const auto& path : written) log.line("wrote {}", path.get<std::string>());
+  return summary.usable() ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Plastic-strain registration of a template organ to sparse scan markers (Sinew)"};
+  std::string case_path, out_dir;
+  bool quiet = false;
+  std::optional<int> max_iterations;
+  app.add_option("--case", case_path, "registration case (JSON)")->required();
+  app.add_option("--out", out_dir, "output folder (created)")->required();
+  app.add_flag("--quiet", quiet, "print nothing but errors");
+  app.add_option("--max-iterations", max_iterations,
+                 "Gauss-Newton iterations per stage (overrides stop.max_iterations)")
+      ->check(CLI::Range(0, 100000));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  try {
+    return run(case_path, out_dir, quiet, max_iterations);
+  } catch (const sinew::tools::InputError& e) {
+    std::cerr << "sinew-register: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "sinew-register: " << e.what() << "\n";
+    return 2;
+  }
+}
