@@ -191,7 +191,7 @@ void BM_ConjugateGradientSolve(benchmark::State& state) {
     ConjugateGradientOptions options;
     options.relative_tolerance = 1e-12;
     options.max_iterations = 10000000;
-    options.max_seconds = large ? 1800.0 : 600.0;
+    options.max_seconds = large ? 1200.0 : 600.0;
     Eigen::VectorXd y(p.gradient.size());
     const ConjugateGradientSummary summary =
         conjugate_gradient_solve(p.laplacian.matrix, p.Zt, -p.gradient, y, options);
