@@ -22,6 +22,25 @@ struct CentrelinePoint {
   Eigen::Matrix<double, 2, 6> jacobian;  ///< ∂c/∂u_e for the element's dofs [ux1 uy1 θ1 ux2 uy2 θ2]
 };
 
+/// The parts of an element's Hermite curve that do not depend on ξ: its end positions and its end
+/// tangents R(θ)·T (two sines and cosines). Evaluated once per element and state, then shared by
+/// all of the element's sample points (the per-point work is then a few multiply-adds).
+struct HermiteElement {
+  double L0 = 0.0;                              ///< reference chord length, pixels
+  Eigen::Vector2d D = Eigen::Vector2d::Zero();  ///< unit reference chord direction
+  Eigen::Vector2d x1, x2;                       ///< current end positions, pixels
+  Eigen::Vector2d t1, t2;                       ///< current unit end tangents R(θ_i)·T_i
+};
+
+/// The ξ-independent part of hermite_centreline (same arguments). No allocation.
+HermiteElement hermite_element(const Eigen::Vector2d& X1,
+                               const common::BeamElementReference& reference,
+                               const Eigen::Vector2d& T1, const Eigen::Vector2d& T2,
+                               const common::Vector6d& u_e);
+
+/// The centreline point at ξ of an element prepared by hermite_element. No allocation.
+CentrelinePoint hermite_point(const HermiteElement& element, double xi);
+
 /// Evaluates the Hermite centreline of an element at ξ. X1: reference position of the first node;
 /// T1, T2: unit reference tangents at its two nodes; u_e: the element's six dofs. No allocation.
 CentrelinePoint hermite_centreline(const Eigen::Vector2d& X1,

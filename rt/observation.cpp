@@ -1,94 +1,115 @@
 #include "rt/observation.hpp"
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 namespace sinew::rt {
 
-int search_profile(const ImageView& image, const Eigen::Vector2d& centre,
-                   const Eigen::Vector2d& normal, const ProfileSearch& search, float* scratch,
-                   Candidate* out) {
-  // Responses at ±range need their neighbours: the central difference reads ±1 more for edges,
-  // the centre-surround ±(surround + 1) for lines.
-  const int margin = search.mode == ObservationMode::kEdge ? 2 : search.line_surround_px + 2;
-  const int half = search.range_px + margin;
-  const int count = 2 * half + 1;
-  float* profile = scratch;
-  float* response = scratch + count;
-  const float missing = std::numeric_limits<float>::quiet_NaN();
+void sample_profile(const ImageView& image, const Eigen::Vector2d& centre,
+                    const Eigen::Vector2d& normal, int first, int count, int band_px,
+                    float* profile) {
   const Eigen::Vector2d tangent(normal.y(), -normal.x());
-  const int band = search.band_px;
+  const int band = band_px;
+  const int rows = 2 * band + 1;
 
-  // Intensity profile, averaged across the band along the tangent (noise ÷ √(2·band + 1)). When the
-  // whole sampled parallelogram lies inside the image (its corners do), samples skip the bounds
-  // checks; otherwise each is checked and a profile point with a sample outside is missing.
-  const Eigen::Vector2d reach = half * normal.cwiseAbs() + band * tangent.cwiseAbs();
-  const bool inside = centre.x() - reach.x() >= 0.0 && centre.y() - reach.y() >= 0.0 &&
-                      centre.x() + reach.x() < image.width - 1.0 &&
-                      centre.y() + reach.y() < image.height - 1.0;
-  const float inv = 1.0f / float(2 * band + 1);
-  if (inside) {
-    // Fast path: all samples inside, walk each band row along the normal in float.
-    for (int k = 0; k < count; ++k) profile[k] = 0.0f;
-    const float nx = static_cast<float>(normal.x()), ny = static_cast<float>(normal.y());
-    const std::ptrdiff_t stride = image.stride;
-    for (int b = -band; b <= band; ++b) {
-      const float x0 = static_cast<float>(centre.x() + b * tangent.x() - half * normal.x());
-      const float y0 = static_cast<float>(centre.y() + b * tangent.y() - half * normal.y());
-      for (int k = 0; k < count; ++k) {
-        const float x = x0 + k * nx, y = y0 + k * ny;
-        const int xi = static_cast<int>(x), yi = static_cast<int>(y);
-        const float fx = x - xi, fy = y - yi;
-        const std::uint8_t* q = image.data + yi * stride + xi;
-        const float top = q[0] + fx * (q[1] - q[0]);
-        const float bottom = q[stride] + fx * (q[stride + 1] - q[stride]);
-        profile[k] += top + fy * (bottom - top);
-      }
-    }
-    for (int k = 0; k < count; ++k) profile[k] *= inv;
-  } else {
-    for (int k = 0; k < count; ++k) {
-      const Eigen::Vector2d p = centre + double(k - half) * normal;
-      float sum = 0.0f;
-      int n = 0;
-      for (int b = -band; b <= band; ++b) {
-        float v;
-        if (image.sample(p.x() + b * tangent.x(), p.y() + b * tangent.y(), &v)) {
-          sum += v;
-          ++n;
-        }
-      }
-      profile[k] = n == 2 * band + 1 ? sum * inv : missing;
+  // When the whole sampled parallelogram lies inside the image (its corners do, with a margin for
+  // the fixed-point rounding below), samples skip the bounds checks.
+  bool inside = true;
+  for (const double k : {double(first), double(first + count - 1)}) {
+    for (const double b : {-double(band), double(band)}) {
+      const Eigen::Vector2d c = centre + k * normal + b * tangent;
+      inside = inside && c.x() >= 0.01 && c.y() >= 0.01 && c.x() <= image.width - 1.01 &&
+               c.y() <= image.height - 1.01;
     }
   }
-
-  // Response at each offset: signed central difference for edges, centre-surround for lines.
-  const int s = search.line_surround_px;
+  if (inside && rows <= 21) {
+    // Fast path in 16.16 fixed point: each band row walks along the normal by integer additions,
+    // and the bilinear weights are the top 8 bits of the fraction (positions rounded to 1/256 px,
+    // far below the ~0.05 px the noise allows). Measured: about 3x cheaper per sample than the
+    // float walk with its float-int conversions, and the integer sums are exact.
+    constexpr double kOne = 65536.0;
+    std::int64_t X[21], Y[21];
+    const std::int64_t dx = std::llround(normal.x() * kOne), dy = std::llround(normal.y() * kOne);
+    for (int r = 0; r < rows; ++r) {
+      const Eigen::Vector2d start = centre + double(first) * normal + double(r - band) * tangent;
+      // + 128: the 8-bit weights round to the nearest 1/256 px instead of truncating.
+      X[r] = std::llround(start.x() * kOne) + 128;
+      Y[r] = std::llround(start.y() * kOne) + 128;
+    }
+    const std::ptrdiff_t stride = image.stride;
+    const float scale = 1.0f / (65536.0f * float(rows));
+    for (int k = 0; k < count; ++k) {
+      std::int32_t sum = 0;
+      for (int r = 0; r < rows; ++r) {
+        const std::int32_t fx = static_cast<std::int32_t>(X[r] >> 8) & 255;
+        const std::int32_t fy = static_cast<std::int32_t>(Y[r] >> 8) & 255;
+        const std::uint8_t* q = image.data + (Y[r] >> 16) * stride + (X[r] >> 16);
+        const std::int32_t top = (q[0] << 8) + fx * (q[1] - q[0]);
+        const std::int32_t bottom = (q[stride] << 8) + fx * (q[stride + 1] - q[stride]);
+        sum += (top << 8) + fy * (bottom - top);  // ≤ 255·2¹⁶ per row
+        X[r] += dx;
+        Y[r] += dy;
+      }
+      profile[k] = static_cast<float>(sum) * scale;
+    }
+    return;
+  }
+  const float missing = std::numeric_limits<float>::quiet_NaN();
+  const float inv = 1.0f / float(rows);
   for (int k = 0; k < count; ++k) {
-    response[k] = missing;
-    if (search.mode == ObservationMode::kEdge) {
-      if (k < 1 || k + 1 >= count) continue;
-      const float g = 0.5f * (profile[k + 1] - profile[k - 1]);
-      response[k] = search.expected_sign == 0 ? std::abs(g) : g * search.expected_sign;
+    const Eigen::Vector2d p = centre + double(first + k) * normal;
+    float sum = 0.0f;
+    int n = 0;
+    for (int b = -band; b <= band; ++b) {
+      float v;
+      if (image.sample(p.x() + b * tangent.x(), p.y() + b * tangent.y(), &v)) {
+        sum += v;
+        ++n;
+      }
+    }
+    profile[k] = n == rows ? sum * inv : missing;
+  }
+}
+
+int find_candidates(const float* profile, int origin, float shift, const ProfileSearch& search,
+                    float* response, Candidate* out) {
+  // Response at each offset: signed central difference for edges, centre-surround for lines.
+  // Only |k| ≤ range + 1 is needed (the local-maximum test reads one neighbour).
+  const int range = search.range_px;
+  const int s = search.line_surround_px;
+  const int begin = origin - range - 1, end = origin + range + 1;
+  // One branch-free loop per mode (vectorised by the compiler).
+  if (search.mode == ObservationMode::kEdge) {
+    const float sign = 0.5f * static_cast<float>(search.expected_sign);
+    if (search.expected_sign == 0) {
+      for (int k = begin; k <= end; ++k)
+        response[k] = 0.5f * std::abs(profile[k + 1] - profile[k - 1]);
     } else {
-      if (k < s || k + s >= count) continue;
+      for (int k = begin; k <= end; ++k) response[k] = sign * (profile[k + 1] - profile[k - 1]);
+    }
+  } else {
+    // > 0 at a dark line.
+    const float sign = search.mode == ObservationMode::kDarkLine ? 1.0f : -1.0f;
+    for (int k = begin; k <= end; ++k) {
       const float surround = 0.5f * (profile[k - s] + profile[k + s]);
       const float centre_value = 0.25f * (profile[k - 1] + 2.0f * profile[k] + profile[k + 1]);
-      const float r = surround - centre_value;  // > 0 at a dark line
-      response[k] = search.mode == ObservationMode::kDarkLine ? r : -r;
+      response[k] = sign * (surround - centre_value);
     }
   }
 
   // Local maxima within ±range, strongest first (insertion into the short output list).
   int found = 0;
-  for (int k = half - search.range_px; k <= half + search.range_px; ++k) {
-    const float r0 = response[k], rm = response[k - 1], rp = response[k + 1];
-    if (!(r0 >= search.min_strength) || !(r0 >= rm) || !(r0 > rp)) continue;  // NaN fails too
+  for (int k = origin - range; k <= origin + range; ++k) {
+    const float r0 = response[k];
+    if (!(r0 >= search.min_strength)) continue;  // most offsets; NaN fails too
+    const float rm = response[k - 1], rp = response[k + 1];
+    if (!(r0 >= rm) || !(r0 > rp)) continue;
     const float denom = rm - 2.0f * r0 + rp;
     float delta = denom < 0.0f ? 0.5f * (rm - rp) / denom : 0.0f;
     if (delta > 0.5f) delta = 0.5f;
     if (delta < -0.5f) delta = -0.5f;
-    Candidate c{float(k - half) + delta, r0};
+    Candidate c{float(k - origin) + delta - shift, r0};
     int pos = found < search.max_candidates ? found : search.max_candidates;
     while (pos > 0 && out[pos - 1].strength < c.strength) {
       if (pos < search.max_candidates) out[pos] = out[pos - 1];
@@ -100,6 +121,51 @@ int search_profile(const ImageView& image, const Eigen::Vector2d& centre,
     }
   }
   return found;
+}
+
+int search_edge_map(const ImageView& edges, const Eigen::Vector2d& centre,
+                    const Eigen::Vector2d& normal, int range_px, int max_candidates,
+                    Candidate* out) {
+  int found = 0;
+  auto keep = [&](float offset) {
+    // Insertion by distance from the centre into the short output list.
+    int pos = found < max_candidates ? found : max_candidates;
+    while (pos > 0 && std::abs(out[pos - 1].offset) > std::abs(offset)) {
+      if (pos < max_candidates) out[pos] = out[pos - 1];
+      --pos;
+    }
+    if (pos < max_candidates) {
+      out[pos] = Candidate{offset, 255.0f};
+      if (found < max_candidates) ++found;
+    }
+  };
+  const int steps = 4 * range_px;  // half-pixel steps over [−range, range]
+  int run_start = -1;
+  for (int k = 0; k <= steps; ++k) {
+    const double s = 0.5 * k - range_px;
+    const double x = centre.x() + s * normal.x(), y = centre.y() + s * normal.y();
+    bool hit = false;
+    if (x >= 0.0 && y >= 0.0 && x < edges.width - 1.0 && y < edges.height - 1.0) {
+      const std::uint8_t* q = edges.data + static_cast<int>(y) * edges.stride + static_cast<int>(x);
+      hit = (q[0] | q[1] | q[edges.stride] | q[edges.stride + 1]) != 0;
+    }
+    if (hit && run_start < 0) run_start = k;
+    if ((!hit || k == steps) && run_start >= 0) {
+      const int run_end = hit ? k : k - 1;
+      keep(static_cast<float>(0.25 * (run_start + run_end) - range_px));
+      run_start = -1;
+    }
+  }
+  return found;
+}
+
+int search_profile(const ImageView& image, const Eigen::Vector2d& centre,
+                   const Eigen::Vector2d& normal, const ProfileSearch& search, float* scratch,
+                   Candidate* out) {
+  const int half = search.range_px + search.margin();
+  const int count = 2 * half + 1;
+  sample_profile(image, centre, normal, -half, count, search.band_px, scratch);
+  return find_candidates(scratch, half, 0.0f, search, scratch + count, out);
 }
 
 }  // namespace sinew::rt

@@ -5,7 +5,9 @@
 /// finds the strongest local responses with sub-pixel localisation (parabola through 3 samples).
 ///
 /// Modes: kEdge finds intensity steps (each boundary of a thick object); kDarkLine / kBrightLine
-/// find the centre of a thin line (whiskers) with a centre-surround response.
+/// find the centre of a thin line (whiskers) with a centre-surround response. kEdgeMap is the
+/// seed's own observation, for comparisons: the image is a binary edge map of the current frame
+/// (e.g. cv::Canny), and each search takes the edge pixels nearest the model along the normal.
 
 #include <Eigen/Core>
 
@@ -13,7 +15,7 @@
 
 namespace sinew::rt {
 
-enum class ObservationMode { kEdge, kDarkLine, kBrightLine };
+enum class ObservationMode { kEdge, kDarkLine, kBrightLine, kEdgeMap };
 
 /// For kEdge: which way intensity steps across the object's boundary. kAuto decides on the first
 /// frame (is the object darker or brighter than its surroundings along the initial polyline?);
@@ -35,13 +37,39 @@ struct ProfileSearch {
   int line_surround_px = 3;   ///< line modes: distance of the surround samples from the centre
   int band_px = 1;            ///< profile averaged over ±band_px pixels along the tangent
 
-  /// Scratch floats search() needs (profile and response).
+  /// Profile samples needed beyond ±range_px: the central difference reads ±1 more around each
+  /// response and the local-maximum test one response more (edges); lines read ±(surround + 1).
+  int margin() const { return mode == ObservationMode::kEdge ? 2 : line_surround_px + 2; }
+  /// Scratch floats search_profile() needs (profile and response).
   int scratch_size() const { return 2 * (2 * (range_px + line_surround_px + 2) + 1); }
 };
 
-/// Searches along centre + s·normal. Writes up to max_candidates candidates, strongest first, into
-/// `out` and returns how many. `scratch` holds scratch_size() floats. Pixels outside the image
-/// produce no candidates. No allocation.
+/// Reads the intensity profile I(centre + k·normal) for k = first … first + count − 1 (1 px steps),
+/// each averaged over ±band_px pixels along the tangent (noise ÷ √(2·band + 1)), bilinear. A
+/// profile point with a sample outside the image is NaN. No allocation.
+void sample_profile(const ImageView& image, const Eigen::Vector2d& centre,
+                    const Eigen::Vector2d& normal, int first, int count, int band_px,
+                    float* profile);
+
+/// Finds the candidates of one search line on a profile read by sample_profile: profile[origin + k]
+/// is the sample at offset k, and must exist for |k| ≤ range_px + margin(). Offsets are searched
+/// over |k| ≤ range_px and reported as k + δ − shift (δ the sub-pixel peak, shift the line centre's
+/// offset from the profile's origin, |shift| ≤ 0.5). `response` holds as many floats as the
+/// profile. Writes up to max_candidates candidates, strongest first; returns how many.
+int find_candidates(const float* profile, int origin, float shift, const ProfileSearch& search,
+                    float* response, Candidate* out);
+
+/// kEdgeMap: walks centre + s·normal, |s| ≤ range_px, in half-pixel steps over a binary edge map
+/// (nonzero = edge); a step hits when a pixel of its 2x2 bilinear support is an edge (so a 1 px
+/// diagonal edge cannot slip between two steps), and each run of hits gives one candidate at its
+/// centre with strength 255. Writes up to max_candidates candidates, nearest the centre first.
+int search_edge_map(const ImageView& edges, const Eigen::Vector2d& centre,
+                    const Eigen::Vector2d& normal, int range_px, int max_candidates,
+                    Candidate* out);
+
+/// Searches along centre + s·normal (sample_profile, then find_candidates). Writes up to
+/// max_candidates candidates, strongest first, into `out` and returns how many. `scratch` holds
+/// scratch_size() floats. Pixels outside the image produce no candidates. No allocation.
 int search_profile(const ImageView& image, const Eigen::Vector2d& centre,
                    const Eigen::Vector2d& normal, const ProfileSearch& search, float* scratch,
                    Candidate* out);

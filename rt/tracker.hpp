@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Dense>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -41,13 +42,24 @@ struct TrackerOptions {
   EdgePolarity polarity = EdgePolarity::kAuto;
   /// Sample points per element (each gives one search line, two in edge mode), ≥ 1.
   int samples_per_element = 8;
-  /// Search ±range pixels along the normal around the predicted model, ≥ 1. Larger tolerates
-  /// faster motion and worse prediction; costs linearly.
-  int search_range_px = 16;
+  /// Search ±range pixels along the normal around the model, ≥ 1: in the repetitions after a wide
+  /// first search (which caught the large motion), and in the first when the motion is predictable
+  /// (see predictable_px). Costs linearly. 8 (was 16): a third fewer samples per search, no
+  /// measured change in accuracy (tests/tools, bench).
+  int search_range_px = 8;
   /// Search range of each frame's first repetition, pixels, ≥ search_range_px: catches the large
   /// motion of the first frames (no velocity yet) and of sudden accelerations; later repetitions
   /// search ±search_range_px around the updated model.
   int first_search_range_px = 40;
+  /// The wide first search (±first_search_range_px, strongest candidate) costs twice a narrow one
+  /// and is only needed when the motion may have outrun the constant-velocity prediction: it runs
+  /// when there is no velocity yet (second frame, after a lost frame or reset_motion), when the
+  /// previous frame's prediction missed by more than this (pixels, max over nodes), and as a retry
+  /// when a narrow first repetition leaves fewer than half of the search lines on the object.
+  /// Otherwise the first repetition searches ±search_range_px, twice this. ≥ 0; 0 always
+  /// searches wide. Edge mode only: a thin line in clutter needs the wide search's strongest-
+  /// candidate association on every frame (measured: free curved beam 0.34 → 0.57 px without).
+  double predictable_px = 4.0;
   /// Strongest responses kept per search line; the one nearest the model is used, ≥ 1.
   int max_candidates = 3;
   /// Weakest response accepted: grey levels per pixel (edges) or grey levels (lines), > 0.
@@ -71,8 +83,13 @@ struct TrackerOptions {
   /// A frame has converged when a repetition moves the nodes by less than this (RMS), pixels, > 0.
   double convergence_px = 0.02;
   /// A repetition searches the image again only if the model moved more than this (pixels, max
-  /// over nodes) since the last search; otherwise it re-uses the candidates. 0 always searches.
-  double research_px = 0.75;
+  /// over nodes, and at most a sixth of the mean element length) since the last search; otherwise
+  /// it re-uses the candidates. 0 always searches. 2 px (was 0.75) saves the second search on most
+  /// frames of beams with elements ≥ 12 px at no measured loss (tests/tools, bench); with shorter
+  /// elements re-used candidates bias the fit (128 elements of 4.7 px: 0.31 → 0.58 px mean node
+  /// error without the element-length bound). A wide search's one-row candidates are always
+  /// replaced by a narrow search.
+  double research_px = 2.0;
   /// Tukey's constant in units of the robust residual scale, > 0. 4.685 is the textbook 95 %
   /// efficiency; 3.5 rejects clutter crossings earlier (measured: 1–2 % better tip loads on the
   /// synthetic sequences, no loss elsewhere).
@@ -121,10 +138,11 @@ const char* to_string(FrameStatus status);
 /// Plain data about one tracked frame.
 struct FrameSummary {
   FrameStatus status = FrameStatus::kLost;
-  int repetitions = 0;           ///< minimisations run
-  int iterations = 0;            ///< Newton iterations over all repetitions
-  int search_lines = 0;          ///< search lines inside the image
-  double rms_px = 0.0;           ///< RMS image residual of the inliers at the end, pixels
+  int repetitions = 0;   ///< minimisations run
+  int iterations = 0;    ///< Newton iterations over all repetitions
+  int searches = 0;      ///< repetitions that searched the image (others re-used candidates)
+  int search_lines = 0;  ///< search lines inside the image
+  double rms_px = 0.0;   ///< RMS image residual of the inliers at the end, pixels
   double inlier_fraction = 0.0;  ///< search lines with an inlier observation / all search lines
   double object_fraction = 0.0;  ///< inliers with an object-like response / all search lines
   bool verified = false;         ///< a verification solve ran and converged
@@ -132,6 +150,7 @@ struct FrameSummary {
   bool loads_fitted = false;     ///< the load-node fit ran and converged
   double load_fit_rms_px = 0.0;  ///< RMS node distance between the fitted equilibrium and the fit
   double seconds = 0.0;          ///< wall time of track()
+  double search_seconds = 0.0;   ///< of which searching the image along the normals
 };
 
 class Tracker {
@@ -175,11 +194,21 @@ class Tracker {
     float xi = 0.0f;
     float side = 0.0f;  // −1, +1 (edge boundaries) or 0 (line centre)
     int end = 0;        // ±1: searches along the outward tangent for the object's end (free ends)
+    int point = 0;      // index into sample_points_ (both boundaries of a sample share a point)
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();
     Eigen::Vector2d normal = Eigen::Vector2d::Zero();
     int num_candidates = 0;
   };
 
+  // A point of the model curve that search lines are placed at.
+  struct SamplePoint {
+    int element = 0;
+    double xi = 0.0;
+  };
+
+  // points_ = the model curve at every sample point at u_: each element's rotations are evaluated
+  // once (not once per search line), and the two boundaries of a sample share their point.
+  void evaluate_points();
   // Where the line expects the image feature at u_, and the direction it searches along.
   Eigen::Vector2d expected_point(const SearchLine& line, const CentrelinePoint& p,
                                  Eigen::Vector2d* direction) const;
@@ -188,8 +217,10 @@ class Tracker {
   // initial polyline; returns kAny when the contrast is too weak to tell.
   EdgePolarity measure_polarity(const ImageView& frame) const;
   // Residuals of all search lines at u_ (nearest candidate) and their Jacobian rows; returns the
-  // robust Tukey cut-off tukey_c · max(1.4826·median|d|, min_sigma_px).
+  // robust Tukey cut-off tukey_c · max(1.4826·median|d|, min_sigma_px) (also kept in cutoff_).
   double residuals();
+  // Fraction of search lines whose residual at the last Newton step looks like the object.
+  double object_fraction_at_last_step() const;
   // Adds the Tukey-weighted image term (Gauss–Newton) to the system and gradient_.
   void add_image_term(double cutoff);
   // Adds the snake energy's gradient and (PSD) Hessian at u_ to gradient_ and snake_matrix_.
@@ -210,23 +241,28 @@ class Tracker {
   int sides_ = 1;
   double observation_weight_ = 0.0;
   double damping_translation_ = 0.0, damping_rotation_ = 0.0;
+  double research_distance_ = 0.0;  // research_px, at most a sixth of the mean element length
   int frames_ = 0;
   bool strongest_candidate_ = false;  // associate with the strongest candidate (first repetition)
   EdgePolarity polarity_ = EdgePolarity::kAny;  // resolved polarity (kAuto decided on frame 0)
 
   // Per-frame workspace, sized at construction.
   std::vector<SearchLine> lines_;
-  std::vector<Candidate> candidates_;  // lines_.size() x max_candidates
-  std::vector<float> residual_;        // per line, NaN when it has no candidate
-  std::vector<float> strength_;        // response of the candidate each line uses
-  double typical_strength_ = 0.0;      // running median response of the object's inliers
+  std::vector<SamplePoint> sample_points_;
+  std::vector<CentrelinePoint> points_;  // the model curve at sample_points_ (evaluate_points)
+  std::vector<Candidate> candidates_;    // lines_.size() x max_candidates
+  std::vector<float> residual_;          // per line, NaN when it has no candidate
+  std::vector<float> strength_;          // response of the candidate each line uses
+  double typical_strength_ = 0.0;        // running median response of the object's inliers
   bool previous_lost_ = false;
-  std::vector<float> sorted_;  // scratch for the median
+  double last_miss_px_ = std::numeric_limits<double>::infinity();  // prediction error, last frame
+  double cutoff_ = 0.0;                                            // robust cutoff of the last step
+  std::vector<float> sorted_;                                      // scratch for the median
   std::vector<float> scratch_;
   std::vector<common::Vector6d> jacobian_rows_;  // ∂d/∂u_e per line
   Eigen::Matrix2Xd node_tangents_;               // unit reference tangent per node
   Eigen::VectorXd u_searched_;                   // state at the last search
-  Eigen::VectorXd u_, u_prev1_, u_prev2_, u_start_, p_ref_, gradient_, du_, forces_;
+  Eigen::VectorXd u_, u_prev1_, u_prev2_, u_predicted_, u_start_, p_ref_, gradient_, du_, forces_;
   Eigen::VectorXd fitted_loads_;
   common::BlockTridiagonal tangent_;
   common::BlockTridiagonalLdlt ldlt_;
