@@ -5,7 +5,8 @@
 // give the same shape for the case in millimetres and in metres (normalisation). (2) Bad inputs:
 // one line naming the file (and line:column or field), exit status 2, no result files. (3) The
 // Botsch–Sorkine bar (../shared/data/botsch_benchmark) with its fixed and handle regions as
-// attachments under the .def transform.
+// attachments under the .def transform. (4) The demo case (--make-demo-case: a capsule stretched
+// and bent by a known deformation) registered with --truth: the result surface is near the truth.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -16,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -25,7 +27,10 @@
 #include <vector>
 
 #include "offline/io/surface_mesh_io.hpp"
+#include "offline/surface_closest_point.hpp"
 #include "tests/support/run_tool.hpp"
+#include "tools/register/demo_case.hpp"
+#include "tools/register/surface_distance.hpp"
 
 namespace {
 
@@ -38,59 +43,7 @@ using sinew::testing::write_text;
 
 const std::string kTool = std::string(SINEW_BINARY_DIR) + "/tools/sinew-register";
 
-// A closed box surface [0, size.x] x [0, size.y] x [0, size.z] with n cells per side, triangles
-// counter-clockwise from outside.
-SurfaceMesh box_surface(const Eigen::Vector3d& size, const Eigen::Vector3i& n) {
-  std::map<std::tuple<int, int, int>, int> index;
-  std::vector<Eigen::Vector3d> vertices;
-  auto vertex = [&](int i, int j, int k) {
-    const auto key = std::make_tuple(i, j, k);
-    auto it = index.find(key);
-    if (it != index.end()) return it->second;
-    vertices.push_back(
-        Eigen::Vector3d(size.x() * i / n.x(), size.y() * j / n.y(), size.z() * k / n.z()));
-    return index[key] = static_cast<int>(vertices.size()) - 1;
-  };
-  std::vector<Eigen::Vector3i> triangles;
-  const Eigen::Vector3d centre = size / 2;
-  auto add = [&](int a, int b, int c) {
-    const Eigen::Vector3d pa = vertices[a], pb = vertices[b], pc = vertices[c];
-    const Eigen::Vector3d normal = (pb - pa).cross(pc - pa);
-    if (normal.dot((pa + pb + pc) / 3 - centre) > 0) {
-      triangles.emplace_back(a, b, c);
-    } else {
-      triangles.emplace_back(a, c, b);
-    }
-  };
-  // Each face: fix one lattice axis at 0 or n, grid the other two.
-  for (int axis = 0; axis < 3; ++axis) {
-    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-    for (int side : {0, n[axis]}) {
-      for (int a = 0; a < n[u]; ++a) {
-        for (int b = 0; b < n[v]; ++b) {
-          auto at = [&](int da, int db) {
-            Eigen::Vector3i ijk;
-            ijk[axis] = side;
-            ijk[u] = a + da;
-            ijk[v] = b + db;
-            return vertex(ijk[0], ijk[1], ijk[2]);
-          };
-          const int p00 = at(0, 0), p10 = at(1, 0), p11 = at(1, 1), p01 = at(0, 1);
-          add(p00, p10, p11);
-          add(p00, p11, p01);
-        }
-      }
-    }
-  }
-  SurfaceMesh mesh;
-  mesh.vertices.resize(static_cast<Eigen::Index>(vertices.size()), 3);
-  for (std::size_t i = 0; i < vertices.size(); ++i)
-    mesh.vertices.row(static_cast<Eigen::Index>(i)) = vertices[i].transpose();
-  mesh.triangles.resize(static_cast<Eigen::Index>(triangles.size()), 3);
-  for (std::size_t i = 0; i < triangles.size(); ++i)
-    mesh.triangles.row(static_cast<Eigen::Index>(i)) = triangles[i].transpose();
-  return mesh;
-}
+using sinew::tools::box_surface;
 
 nlohmann::json xyz(const Eigen::Vector3d& p) {
   return {p.x(), p.y(), p.z()};
@@ -101,8 +54,10 @@ nlohmann::json xyz(const Eigen::Vector3d& p) {
 // end (1.3x longer overall): ∇φ = diag(1 + 0.15x, 1, 1) is a symmetric plastic field, so the
 // truth is reachable and stress-free, but not by the constant initial fit alone.
 Eigen::Vector3d truth(const Eigen::Vector3d& p, double unit) {
-  const double x = p.x() / unit;
-  return Eigen::Vector3d(x + 0.3 * x * x / 4, p.y() / unit, p.z() / unit) * unit;
+  sinew::tools::AxialStretchBend phi;  // σ(t) = 4(t + 0.3t²) units with t = x / 4 units
+  phi.free_length = 4 * unit;
+  phi.stretch = 0.3;
+  return phi(p);
 }
 
 struct StretchCase {
@@ -501,6 +456,106 @@ TEST(SinewRegister, BotschBarTwistFromFixedAndHandleRegions) {
             << o.report["inputs"]["tets"] << " tets; " << o.seconds << " s; termination "
             << o.report["termination"] << "\n";
   EXPECT_LT(last, 0.01 * handle_move);
+}
+
+// --- the demo case of scripts/demo, with --truth
+
+TEST(SinewRegister, SurfaceDistanceMatchesBruteForce) {
+  const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
+  const SurfaceMesh& truth = demo.truth_surface;
+  const sinew::tools::SurfaceDistance query(truth);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> uniform(-80.0, 180.0);
+  double largest = 0.0;
+  for (int i = 0; i < 300; ++i) {
+    // Near the surface (jittered vertices) and far from it (anywhere in a box around it).
+    const Eigen::Vector3d p =
+        i % 2 == 0 ? Eigen::Vector3d(truth.vertices.row(i % truth.vertices.rows()).transpose() +
+                                     Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng)) / 50)
+                   : Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
+    double brute = std::numeric_limits<double>::infinity();
+    for (Eigen::Index f = 0; f < truth.triangles.rows(); ++f)
+      brute = std::min(brute, (sinew::offline::closest_point_on_triangle(
+                                   p, truth.vertices.row(truth.triangles(f, 0)).transpose(),
+                                   truth.vertices.row(truth.triangles(f, 1)).transpose(),
+                                   truth.vertices.row(truth.triangles(f, 2)).transpose())
+                                   .point -
+                               p)
+                                  .norm());
+    EXPECT_NEAR(query.distance(p), brute, 1e-12 * (1 + brute)) << i;
+    largest = std::max(largest, brute);
+  }
+  EXPECT_GT(largest, 10.0);  // the far points tested the ring search
+}
+
+TEST(SinewRegister, DemoCaseMeetsItsKnownDeformation) {
+  const auto dir = scratch_dir("sinew_register_demo_case");
+  const auto made = run_tool(kTool + " --make-demo-case " + (dir / "case").string(), dir);
+  ASSERT_EQ(made.exit_status, 0) << made.err;
+  std::cout << made.out;
+  for (const char* name :
+       {"case.json", "template.obj", "truth_surface.obj", "markers.csv", "attachments.json"})
+    EXPECT_TRUE(fs::exists(dir / "case" / name)) << name;
+
+  // The generator is deterministic and the files are what make_demo_case builds.
+  const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
+  const auto truth =
+      sinew::offline::io::read_surface_mesh((dir / "case/truth_surface.obj").string());
+  ASSERT_TRUE(truth.ok()) << truth.error;
+  EXPECT_TRUE(truth.mesh->vertices.isApprox(demo.truth_surface.vertices, 1e-14));
+  EXPECT_TRUE(sinew::offline::io::check_surface(demo.template_surface).closed_manifold());
+  EXPECT_GT(sinew::offline::io::check_surface(demo.template_surface).signed_volume, 0.0);
+  EXPECT_TRUE(sinew::offline::io::check_surface(demo.truth_surface).closed_manifold());
+  // Not a trivial case: the template is far from the truth.
+  const auto before = sinew::tools::vertex_to_surface_distances(demo.template_surface, *truth.mesh);
+  EXPECT_GT(before.max, 10.0);
+
+  const auto start = std::chrono::steady_clock::now();
+  const auto r =
+      run_tool(kTool + " --case " + (dir / "case/case.json").string() + " --out " +
+                   (dir / "out").string() + " --truth " + (dir / "case/truth_surface.obj").string(),
+               dir);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::cout << r.out;
+  ASSERT_EQ(r.exit_status, 0) << r.err;
+  const auto report = nlohmann::json::parse(read_text(dir / "out" / "report.json"));
+  const double diagonal = report["inputs"]["bounding_box_diagonal"].get<double>();
+  ASSERT_TRUE(report.contains("truth")) << report.dump(1);
+  const nlohmann::json& t = report["truth"];
+  for (const char* key : {"result_to_truth_mean", "result_to_truth_max", "truth_to_result_mean",
+                          "truth_to_result_max", "max_fraction_of_diagonal"})
+    ASSERT_TRUE(t.contains(key)) << key;
+  const double worst =
+      std::max(t["result_to_truth_max"].get<double>(), t["truth_to_result_max"].get<double>());
+  std::cout << "demo case: template to truth max " << before.max << " mm; result to truth mean "
+            << t["result_to_truth_mean"] << " max " << t["result_to_truth_max"]
+            << " mm; truth to result max " << t["truth_to_result_max"] << " mm (diagonal "
+            << diagonal << " mm); " << seconds << " s\n";
+  EXPECT_NEAR(t["max_fraction_of_diagonal"].get<double>(), worst / diagonal, 1e-12);
+  EXPECT_LT(report["final"]["marker_error_max"].get<double>(), 0.005 * diagonal);
+  EXPECT_LT(t["result_to_truth_mean"].get<double>(), 0.005 * diagonal);
+  EXPECT_LT(t["truth_to_result_mean"].get<double>(), 0.005 * diagonal);
+  EXPECT_LT(worst, 0.03 * diagonal);
+  EXPECT_LT(worst, 0.25 * before.max);
+  EXPECT_NE(r.out.find("truth: result vertices to"), std::string::npos) << r.out;
+  EXPECT_LT(seconds, 120.0);
+
+  // A --truth file that cannot be read is an input error: one line, exit 2, nothing written.
+  const auto bad =
+      run_tool(kTool + " --case " + (dir / "case/case.json").string() + " --out " +
+                   (dir / "out_bad").string() + " --truth " + (dir / "nope.obj").string(),
+               dir);
+  EXPECT_EQ(bad.exit_status, 2) << bad.err;
+  EXPECT_NE(bad.err.find("nope.obj"), std::string::npos) << bad.err;
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+  EXPECT_FALSE(fs::exists(dir / "out_bad"));
+  // --make-demo-case with --case is a usage error.
+  const auto usage = run_tool(kTool + " --make-demo-case " + (dir / "x").string() + " --case " +
+                                  (dir / "case/case.json").string(),
+                              dir);
+  EXPECT_EQ(usage.exit_status, 2) << usage.err;
+  EXPECT_FALSE(fs::exists(dir / "x"));
 }
 
 }  // namespace

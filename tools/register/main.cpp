@@ -7,7 +7,14 @@
 //                              and det Fp as cell data, for ParaView
 //   OUTDIR/report.json         per-iteration log, totals, termination, inputs and mesh quality
 //
-//   sinew-register --case case.json --out OUTDIR [--quiet] [--max-iterations N]
+//   sinew-register --case case.json --out OUTDIR [--quiet] [--max-iterations N] [--truth FILE]
+//   sinew-register --make-demo-case DIR
+//
+// --truth FILE (a surface in the case's units) reports the distances between the result surface
+// and FILE (result vertices to FILE's surface and FILE's vertices to the result surface: mean and
+// max), on the terminal and in report.json's "truth". --make-demo-case writes a case with a known
+// answer (tools/register/demo_case.hpp: a capsule stretched and bent, ICP markers on the truth,
+// DIR/truth_surface.obj) and exits; scripts/demo registers it.
 //
 // The case file is described in tools/register/case_file.hpp. The geometry is normalised (bounding-
 // box centre at the origin, diagonal 1, unit material) so the defaults fit millimetres and metres;
@@ -39,6 +46,8 @@
 #include "offline/surface_closest_point.hpp"
 #include "tools/io/json_file.hpp"
 #include "tools/register/case_file.hpp"
+#include "tools/register/demo_case.hpp"
+#include "tools/register/surface_distance.hpp"
 
 namespace {
 
@@ -151,7 +160,7 @@ void prepare_output_dir(const Outputs& out) {
 }
 
 int run(const std::string& case_path, const std::string& out_dir, bool quiet,
-        std::optional<int> max_iterations) {
+        std::optional<int> max_iterations, const std::string& truth_path) {
   const Clock::time_point run_start = Clock::now();
   const Log log(quiet);
   nlohmann::json phases;
@@ -185,6 +194,14 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
                  ? fmt::format(" ({} polygons triangulated)", r.polygons_triangulated)
                  : "");
     inputs["template_triangles"] = surface.triangles.rows();
+  }
+  std::optional<offline::io::SurfaceMesh> truth;  // --truth, checked before any work
+  if (!truth_path.empty()) {
+    offline::io::SurfaceMeshReadResult r = offline::io::read_surface_mesh(truth_path);
+    if (!r.ok()) throw tools::InputError(r.error);
+    truth = std::move(*r.mesh);
+    log.line("truth: {}, {} vertices, {} triangles", truth_path, truth->vertices.rows(),
+             truth->triangles.rows());
   }
   const Eigen::MatrixXd template_vertices =
       c.template_is_tet_mesh ? Eigen::MatrixXd(tet_mesh.vertices) : surface.vertices;
@@ -419,6 +436,25 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
       throw std::runtime_error(error);
     written.push_back(out.surface().string());
 
+    if (truth) {
+      const tools::SurfaceDistanceStats to_truth =
+          tools::vertex_to_surface_distances(deformed, *truth);
+      const tools::SurfaceDistanceStats from_truth =
+          tools::vertex_to_surface_distances(*truth, deformed);
+      const double farthest = std::max(to_truth.max, from_truth.max);
+      report["truth"] = {{"surface", truth_path},
+                         {"result_to_truth_mean", to_truth.mean},
+                         {"result_to_truth_max", to_truth.max},
+                         {"truth_to_result_mean", from_truth.mean},
+                         {"truth_to_result_max", from_truth.max},
+                         {"max_fraction_of_diagonal", farthest / frame.scale}};
+      log.line(
+          "truth: result vertices to {} mean {:.4g} max {:.4g}{}; its vertices to the result "
+          "mean {:.4g} max {:.4g}{}; worst {:.2f}% of the diagonal",
+          truth_path, to_truth.mean, to_truth.max, u, from_truth.mean, from_truth.max, u,
+          100 * farthest / frame.scale);
+    }
+
     // Deformed tet mesh with the plastic field.
     offline::TetMesh mesh;
     mesh.vertices = frame.to_user(positions(result.x));
@@ -459,8 +495,15 @@ int main(int argc, char** argv) {
   std::string case_path, out_dir;
   bool quiet = false;
   std::optional<int> max_iterations;
-  app.add_option("--case", case_path, "registration case (JSON)")->required();
-  app.add_option("--out", out_dir, "output folder (created)")->required();
+  std::string truth_path, demo_dir;
+  app.add_option("--case", case_path, "registration case (JSON)");
+  app.add_option("--out", out_dir, "output folder (created)");
+  app.add_option("--truth", truth_path,
+                 "known target surface (.obj/.off/.stl/.ply, case units): report the result's "
+                 "distance to it");
+  app.add_option("--make-demo-case", demo_dir,
+                 "write a case with a known answer (template.obj, markers.csv, attachments.json, "
+                 "truth_surface.obj, case.json) into this folder and exit");
   app.add_flag("--quiet", quiet, "print nothing but errors");
   app.add_option("--max-iterations", max_iterations,
                  "Gauss-Newton iterations per stage (overrides stop.max_iterations)")
@@ -470,8 +513,37 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
+  if (!demo_dir.empty()) {
+    if (!case_path.empty() || !out_dir.empty() || !truth_path.empty()) {
+      std::cerr << "sinew-register: --make-demo-case takes no --case, --out or --truth\n";
+      return 2;
+    }
+    try {
+      const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
+      sinew::tools::write_demo_case(demo, demo_dir);
+      if (!quiet) {
+        fmt::print(
+            "wrote {}/case.json: a {:g} x {:g} x {:g} mm capsule ({} vertices) attached at its x = "
+            "0 end by {} points; {} ICP markers on its known deformation (free part {:g}x longer, "
+            "bent {:.0f} degrees; vertices move up to {:.1f} mm), {}/truth_surface.obj\n",
+            demo_dir, demo.options.shape.length, 2 * demo.options.shape.radius_y,
+            2 * demo.options.shape.radius_z, demo.template_surface.vertices.rows(),
+            demo.attachment_points.rows(), demo.markers.rows(), 1 + demo.options.stretch,
+            demo.options.bend_radians * 180 / std::acos(-1.0), demo.max_displacement, demo_dir);
+      }
+      return 0;
+    } catch (const std::exception& e) {
+      std::cerr << "sinew-register: " << e.what() << "\n";
+      return 2;
+    }
+  }
+  if (case_path.empty() || out_dir.empty()) {
+    std::cerr << "sinew-register: --case and --out are required (or --make-demo-case DIR); see "
+                 "--help\n";
+    return 2;
+  }
   try {
-    return run(case_path, out_dir, quiet, max_iterations);
+    return run(case_path, out_dir, quiet, max_iterations, truth_path);
   } catch (const sinew::tools::InputError& e) {
     std::cerr << "sinew-register: " << e.what() << "\n";
     return 2;

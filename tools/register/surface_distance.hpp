@@ -1,0 +1,48 @@
+#pragma once
+/// Distances between two triangle surfaces, for `sinew-register --truth FILE`: how far the
+/// registered surface is from a known (or separately segmented) target surface. Point-to-surface
+/// distances (closest point on any triangle, not vertex to vertex), so a result whose vertices
+/// slid along the right surface scores as well as one that kept its correspondence.
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "offline/io/surface_mesh_io.hpp"
+
+namespace sinew::tools {
+
+/// Closest-point distances to a fixed triangle surface, accelerated by a uniform grid of the
+/// triangles' bounding boxes (about as many cells as triangles; a query visits rings of cells
+/// around the point until no unvisited cell can hold a closer triangle).
+class SurfaceDistance {
+ public:
+  /// surface: #V by 3 vertices and #F by 3 triangles (F ≥ 1; indices in range).
+  explicit SurfaceDistance(const offline::io::SurfaceMesh& surface);
+
+  /// Distance from p to the nearest point of the surface, in the surface's units.
+  double distance(const Eigen::Vector3d& p) const;
+
+ private:
+  Eigen::Index cell_index(const Eigen::Vector3i& c) const {
+    return (static_cast<Eigen::Index>(c.z()) * dims_.y() + c.y()) * dims_.x() + c.x();
+  }
+
+  offline::io::SurfaceMesh surface_;
+  Eigen::Vector3d origin_;
+  double cell_ = 1.0;
+  Eigen::Vector3i dims_;
+  std::vector<int> cell_start_;  // CSR: triangles of cell i are cell_triangles_[start[i]..[i+1])
+  std::vector<int> cell_triangles_;
+};
+
+/// Distances from every vertex of one surface to the other surface.
+struct SurfaceDistanceStats {
+  double mean = 0.0;
+  double max = 0.0;
+};
+
+/// from's vertices to the surface to (one-sided).
+SurfaceDistanceStats vertex_to_surface_distances(const offline::io::SurfaceMesh& from,
+                                                 const offline::io::SurfaceMesh& to);
+
+}  // namespace sinew::tools
