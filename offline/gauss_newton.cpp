@@ -137,8 +137,10 @@ class Registration {
   }
 
   // The Gauss–Newton direction at (s, x) for the objective terms (eqs. 10–14).
-  bool direction(const PointConstraints& terms, Eigen::VectorXd& step, GaussNewtonIteration& record,
-                 std::string* why) {
+  bool direction(RegistrationStage stage, const PointConstraints& terms, Eigen::VectorXd& step,
+                 GaussNewtonIteration& record, std::string* why) {
+    const double damping_floor =
+        stage == RegistrationStage::kAttachments ? options_.attachment_stage_damping_floor : 0.0;
     Clock::time_point start = Clock::now();
     std::optional<ConstraintJacobian> jacobian =
         constraint_jacobian(energy_, springs_, terms, s, x, tangent_, why);
@@ -150,8 +152,8 @@ class Registration {
     const Eigen::VectorXd Ls = laplacian_ * s;
     Eigen::VectorXd gradient = laplacian_ * Ls;
     gradient.noalias() += jacobian->Zt * jacobian->residual;
-    WoodburyStatus solved = woodbury_.set_constraint_rows_transposed(std::move(jacobian->Zt),
-                                                                     options_.nullspace_damping);
+    WoodburyStatus solved = woodbury_.set_constraint_rows_transposed(
+        std::move(jacobian->Zt), options_.nullspace_damping, damping_floor);
     step.resize(s.size());
     if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
     record.woodbury_seconds = seconds_since(start);
@@ -327,6 +329,10 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
   }
   if (!(nullspace_damping >= 0.0 && std::isfinite(nullspace_damping))) {
     return invalid("nullspace_damping", nullspace_damping, "must be >= 0");
+  }
+  if (!(attachment_stage_damping_floor >= 0.0 && std::isfinite(attachment_stage_damping_floor))) {
+    return invalid("attachment_stage_damping_floor", attachment_stage_damping_floor,
+                   "must be >= 0");
   }
   if (!(eigenvalue_floor > 0.0 && std::isfinite(eigenvalue_floor))) {
     return invalid("eigenvalue_floor", eigenvalue_floor, "must be > 0");
@@ -556,7 +562,7 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
         termination = GaussNewtonTermination::kSmallDecrease;
         break;
       }
-      if (!r.direction(*terms, step, record, &error)) {
+      if (!r.direction(stage, *terms, step, record, &error)) {
         termination = GaussNewtonTermination::kLinearSolveFailed;
         summary.message = error;
         break;

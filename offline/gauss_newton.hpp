@@ -107,6 +107,13 @@ struct GaussNewtonOptions {
   /// δ = damping·‖ZΨ‖²/6 + 1e-12 keeps the Woodbury capacitance invertible (see
   /// WoodburySolver::set_constraint_rows_transposed).
   double nullspace_damping = 1e-6;
+  /// In the attachments-only stage, a floor of that damping relative to ‖Z‖²_F/6, the
+  /// constraints' total curvature; ≥ 0. Attachments alone hardly see a uniform strain, and without
+  /// a floor that stage steps freely along it and undoes the constant initial fit (tests/offline/
+  /// test_paper_figures.cpp: the Fig. 4 beam collapsed to 0.22x its width). Not applied in the
+  /// landmark and ICP stages, whose markers do see uniform strains (a floor of 1e-2 there slowed
+  /// the landmark ground-truth case from 0.7% to 7.9% surface error in 20 iterations).
+  double attachment_stage_damping_floor = 0.1;
   /// Eigenvalue floor of Fp after each step (§3.4: 0.01); > 0.
   double eigenvalue_floor = kDefaultEigenvalueFloor;
   /// Equilibrium solves (line search, initial fit).

@@ -197,11 +197,11 @@ void WoodburySolver::apply_laplacian_pseudo_inverse(Eigen::Ref<Eigen::VectorXd> 
   }
 }
 
-WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt,
-                                                              double relative_nullspace_damping) {
+WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt, double relative,
+                                                              double floor) {
   factorised_ = false;
   if (Zt.rows() != size() || !Zt.allFinite()) return WoodburyStatus::kInvalidInput;
-  if (!(relative_nullspace_damping >= 0.0 && std::isfinite(relative_nullspace_damping))) {
+  if (!(relative >= 0.0 && std::isfinite(relative)) || !(floor >= 0.0 && std::isfinite(floor))) {
     return WoodburyStatus::kInvalidInput;
   }
   const Eigen::Index r = Zt.cols();
@@ -212,7 +212,7 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt
   Z_psi_.setZero(r, 6);
   for (Eigen::Index t = 0; t < m; ++t) Z_psi_ += Zt_.middleRows<6>(6 * t).transpose();
   Z_psi_ *= inv_sqrt_m;
-  const double delta = relative_nullspace_damping * Z_psi_.squaredNorm() / 6.0 + 1e-12;
+  const double delta = (relative * Z_psi_.squaredNorm() + floor * Zt_.squaredNorm()) / 6.0 + 1e-12;
   const double k = std::sqrt(1.0 + delta);
   nullspace_scale_ = k;
 

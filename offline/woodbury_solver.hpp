@@ -75,11 +75,12 @@ class WoodburySolver {
   /// avoid a copy of what is 1.3 GB at 30k tets and 900 rows). δ ≥ 0 damps only the six
   /// constant-strain modes (Ψ, the nullspace of L), where H is singular when the constraints do not
   /// see a uniform change of s (e.g. stiff attachments alone):
-  ///   δ = relative_nullspace_damping·‖ZΨ‖²_F/6 + 1e-12,
-  /// i.e. relative to the constraints' own curvature along Ψ. It enters as Ẑ's last six rows
-  /// √(1 + δ)·Ψᵀ, so B is unchanged.
-  WoodburyStatus set_constraint_rows_transposed(Eigen::MatrixXd Zt,
-                                                double relative_nullspace_damping = 0.0);
+  ///   δ = relative·‖ZΨ‖²_F/6 + floor·‖Z‖²_F/6 + 1e-12,
+  /// relative to the constraints' own curvature along Ψ, with a floor relative to their total
+  /// curvature (so a mode the constraints do not see at all is still damped at their scale). It
+  /// enters as Ẑ's last six rows √(1 + δ)·Ψᵀ, so B is unchanged.
+  WoodburyStatus set_constraint_rows_transposed(Eigen::MatrixXd Zt, double relative = 0.0,
+                                                double floor = 0.0);
   /// δ of the last set_constraint_rows_transposed().
   double nullspace_damping() const { return nullspace_scale_ * nullspace_scale_ - 1.0; }
   /// y = H⁻¹ h (6m); y must be 6m and not alias h.
