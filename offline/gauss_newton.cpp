@@ -156,6 +156,8 @@ class Registration {
         std::move(jacobian->Zt), options_.nullspace_damping, damping_floor);
     step.resize(s.size());
     if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
+    // The quadratic model's decrease for the exact step (HΔs = −g): −gᵀΔs − ½ΔsᵀHΔs = −½gᵀΔs.
+    record.predicted_decrease = -0.5 * gradient.dot(step);
     record.woodbury_seconds = seconds_since(start);
     if (solved != WoodburyStatus::kOk) {
       *why = std::string("Woodbury solve: ") + to_string(solved);
@@ -317,6 +319,9 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
   }
   if (!(relative_decrease_tolerance >= 0.0 && relative_decrease_tolerance < 1.0)) {
     return invalid("relative_decrease_tolerance", relative_decrease_tolerance, "must be in [0, 1)");
+  }
+  if (!(full_step_acceptance >= 0.0 && full_step_acceptance <= 1.0)) {
+    return invalid("full_step_acceptance", full_step_acceptance, "must be in [0, 1]");
   }
   if (line_search_evaluations < 3) {
     return invalid("line_search_evaluations", line_search_evaluations, "must be >= 3");
@@ -589,10 +594,18 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
         }
         return value;
       };
-      // The full step first (Gauss–Newton's natural guess), then Brent on [0, max_step].
-      phi(std::min(1.0, options.max_step));
-      brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
-                     options.line_search_evaluations - 1);
+      // The full step first (Gauss–Newton's natural guess). It is taken as is when it achieved
+      // at least full_step_acceptance of the model's decrease (and no tet was clamped, which would
+      // change the step); otherwise Brent searches [0, max_step] (§3.4).
+      const double full = phi(std::min(1.0, options.max_step));
+      const bool full_step_good =
+          record.clamped_tets == 0 && options.full_step_acceptance > 0.0 &&
+          record.predicted_decrease > 0.0 &&
+          before - full >= options.full_step_acceptance * record.predicted_decrease;
+      if (!full_step_good) {
+        brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
+                       options.line_search_evaluations - 1);
+      }
       record.line_search_seconds = seconds_since(search_start);
       record.equilibrium_solves = r.equilibrium_solves - solves_before;
       if (best_eta <= 0.0) {
