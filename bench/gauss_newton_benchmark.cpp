@@ -24,6 +24,7 @@
 #include "offline/plastic_elastic_energy.hpp"
 #include "offline/plastic_strain_laplacian.hpp"
 #include "offline/woodbury_solver.hpp"
+#include "tests/support/tet_mesh_fixtures.hpp"
 
 namespace {
 
@@ -48,32 +49,6 @@ struct Problem {
   double jacobian_seconds = 0.0;
 };
 
-// A box of nx·ny·nz cubes of side h, six Kuhn tets each (positively oriented).
-void make_box(int nx, int ny, int nz, double h, Problem& p) {
-  const auto vertex = [&](int i, int j, int k) { return i + (nx + 1) * (j + (ny + 1) * k); };
-  p.rest.resize((nx + 1) * (ny + 1) * (nz + 1), 3);
-  for (int k = 0; k <= nz; ++k)
-    for (int j = 0; j <= ny; ++j)
-      for (int i = 0; i <= nx; ++i) p.rest.row(vertex(i, j, k)) << h * i, h * j, h * k;
-  const int kuhn[6][4] = {{0, 1, 3, 7}, {0, 3, 2, 7}, {0, 2, 6, 7},
-                          {0, 6, 4, 7}, {0, 4, 5, 7}, {0, 5, 1, 7}};
-  p.tets.resize(6 * nx * ny * nz, 4);
-  int t = 0;
-  for (int k = 0; k < nz; ++k)
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i)
-        for (const auto& tet : kuhn) {
-          for (int a = 0; a < 4; ++a) {
-            const int c = tet[a];
-            p.tets(t, a) = vertex(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
-          }
-          common::Matrix3x4d X;
-          for (int a = 0; a < 4; ++a) X.col(a) = p.rest.row(p.tets(t, a)).transpose();
-          if (common::signed_volume(X) < 0) std::swap(p.tets(t, 2), p.tets(t, 3));
-          ++t;
-        }
-}
-
 EmbeddedPoint at_vertex(const common::TetIndices& tets, int v) {
   for (Eigen::Index t = 0; t < tets.rows(); ++t)
     for (int a = 0; a < 4; ++a)
@@ -93,7 +68,9 @@ Problem& problem(bool large) {
   slot = std::make_unique<Problem>();
   Problem& p = *slot;
   const int n = large ? 25 : 8, nz = large ? 8 : 4, markers = large ? 300 : 60;
-  make_box(n, n, nz, 0.004, p);
+  testing::TetMesh box = testing::make_box_mesh(n, n, nz, 0.004);
+  p.rest = std::move(box.rest_positions);
+  p.tets = std::move(box.tets);
   common::StableNeoHookeanParameters material;
   material.youngs_modulus = 1e4;
   material.poisson_ratio = 0.4;
