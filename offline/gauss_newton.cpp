@@ -329,6 +329,9 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
   if (!(line_search_tolerance > 0.0 && line_search_tolerance < 0.5)) {
     return invalid("line_search_tolerance", line_search_tolerance, "must be in (0, 0.5)");
   }
+  if (first_equilibrium_steps < 1) {
+    return invalid("first_equilibrium_steps", first_equilibrium_steps, "must be >= 1");
+  }
   if (initial_fit_evaluations < 10) {
     return invalid("initial_fit_evaluations", initial_fit_evaluations, "must be >= 10");
   }
@@ -486,10 +489,29 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
                  laplacian.matrix, constraints, closest_point, options);
   r.s = result.s;
   r.x = result.x;
-  // The springs pull the template to the attachment targets first.
+  // The springs pull the template to the attachment targets first. When the targets are far (a
+  // twisted bar, a bone in another pose), the direct solve may fail: then the targets are moved
+  // from where the template has its attachment points to where they belong in
+  // first_equilibrium_steps equal steps, each solve warm-started from the previous one.
   if (!r.solve_equilibrium(r.s, r.x)) {
-    return fail(GaussNewtonTermination::kEquilibriumFailed,
-                "no static equilibrium of the template under the attachments");
+    r.x = energy_in.rest_dofs();
+    bool reached = options.first_equilibrium_steps > 1;
+    const auto& list = constraints.attachments;
+    for (int step_index = 1; reached && step_index <= options.first_equilibrium_steps;
+         ++step_index) {
+      const double t = static_cast<double>(step_index) / options.first_equilibrium_steps;
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        const Eigen::Vector3d start =
+            embedded_position(energy_in.tets(), list[i].point, energy_in.rest_dofs());
+        springs->set_target(static_cast<Eigen::Index>(i), start + t * (list[i].target - start));
+      }
+      reached = r.solve_equilibrium(r.s, r.x);
+    }
+    if (!reached) {
+      return fail(GaussNewtonTermination::kEquilibriumFailed,
+                  "no static equilibrium of the template under the attachments (also not by " +
+                      std::to_string(options.first_equilibrium_steps) + " load steps)");
+    }
   }
 
   std::vector<RegistrationStage> stages{RegistrationStage::kAttachments};

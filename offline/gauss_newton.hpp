@@ -106,6 +106,9 @@ struct GaussNewtonOptions {
   bool initial_constant_fit = true;
   /// Objective evaluations (equilibrium solves) of the constant fit, ≥ 10.
   int initial_fit_evaluations = 80;
+  /// When the template's first equilibrium under the attachments cannot be solved directly, the
+  /// attachment targets are moved there in this many equal load steps; ≥ 1 (1: no continuation).
+  int first_equilibrium_steps = 16;
   /// Levenberg damping of the six constant-strain modes (the nullspace of L), relative to
   /// ‖ZΨ‖²/6, the constraints' own curvature along them; ≥ 0. H = L² + ZᵀZ is singular there when
   /// the stage's constraints hardly see a uniform change of s (stiff attachments alone), and
