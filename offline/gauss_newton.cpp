@@ -479,7 +479,15 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
     return fail(GaussNewtonTermination::kInvalidInput, "attachments: " + check.message());
   std::string error;
   auto equilibrium = EquilibriumSolver::create(*energy, *springs, options.equilibrium, &error);
-  if (!equilibrium) return fail(GaussNewtonTermination::kInvalidInput, error);
+  // The template's first equilibrium may need to pass through inverted tets (a twisted bar):
+  // rejecting inversions there left the line search stuck (Botsch–Sorkine bar, 135°), so the
+  // fallback solves below allow them; the stable neo-Hookean energy is finite when inverted.
+  EquilibriumOptions first_options = options.equilibrium;
+  first_options.reject_inversions = false;
+  auto first_equilibrium = EquilibriumSolver::create(*energy, *springs, first_options, &error);
+  if (!equilibrium || !first_equilibrium) {
+    return fail(GaussNewtonTermination::kInvalidInput, error);
+  }
   const PlasticStrainLaplacian laplacian = make_plastic_strain_laplacian(energy->tets());
   auto woodbury =
       WoodburySolver::create(laplacian.adjacency, energy->num_tets(), options.woodbury, &error);
@@ -490,26 +498,33 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
   r.s = result.s;
   r.x = result.x;
   // The springs pull the template to the attachment targets first. When the targets are far (a
-  // twisted bar, a bone in another pose), the direct solve may fail: then the targets are moved
-  // from where the template has its attachment points to where they belong in
-  // first_equilibrium_steps equal steps, each solve warm-started from the previous one.
+  // twisted bar, a bone in another pose) the direct solve may fail: then it is retried allowing
+  // inverted tets on the way, directly and, failing that, with the targets moved from where the
+  // template has its attachment points to where they belong in first_equilibrium_steps equal steps.
   if (!r.solve_equilibrium(r.s, r.x)) {
+    const Eigen::VectorXd s0 = r.s;
     r.x = energy_in.rest_dofs();
-    bool reached = options.first_equilibrium_steps > 1;
+    ++r.equilibrium_solves;
+    bool reached = first_equilibrium->solve(s0, r.x).converged();
     const auto& list = constraints.attachments;
-    for (int step_index = 1; reached && step_index <= options.first_equilibrium_steps;
+    for (int step_index = 1; !reached && step_index <= options.first_equilibrium_steps;
          ++step_index) {
+      if (step_index == 1) r.x = energy_in.rest_dofs();
       const double t = static_cast<double>(step_index) / options.first_equilibrium_steps;
       for (std::size_t i = 0; i < list.size(); ++i) {
         const Eigen::Vector3d start =
             embedded_position(energy_in.tets(), list[i].point, energy_in.rest_dofs());
         springs->set_target(static_cast<Eigen::Index>(i), start + t * (list[i].target - start));
       }
-      reached = r.solve_equilibrium(r.s, r.x);
+      ++r.equilibrium_solves;
+      const bool step_reached = first_equilibrium->solve(s0, r.x).converged();
+      if (!step_reached) break;
+      reached = step_index == options.first_equilibrium_steps;
     }
     if (!reached) {
       return fail(GaussNewtonTermination::kEquilibriumFailed,
-                  "no static equilibrium of the template under the attachments (also not by " +
+                  "no static equilibrium of the template under the attachments (also not with "
+                  "inversions allowed, nor by " +
                       std::to_string(options.first_equilibrium_steps) + " load steps)");
     }
   }

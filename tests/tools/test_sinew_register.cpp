@@ -409,13 +409,9 @@ TEST(SinewRegister, BotschBarTwistFromFixedAndHandleRegions) {
     for (int i = 0; i < 4; ++i)
       for (int j = 0; j < 4; ++j) in >> transform(i, j);
   }
-  // A fifth of the .def rotation (27° of 135° about z): for the full twist the template's first
-  // equilibrium under the springs fails (equilibrium-failed, exit status 1), with stiff or soft
-  // springs alike, directly and also in 16 load steps (the first step already fails: not
-  // understood yet).
-  const double angle = 0.2 * std::atan2(transform(1, 0), transform(0, 0));
-  transform.topLeftCorner<3, 3>() =
-      Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  // The full .def rotation (135° about z). The template's first equilibrium under the springs
+  // only converges when tets may invert on the way (register_attached's fallback): with inversions
+  // rejected the Newton line search stalls.
   // Every 8th fixed and handle vertex: enough to hold both ends.
   nlohmann::json attachments = nlohmann::json::array();
   int fixed = 0, handle = 0;
@@ -434,7 +430,7 @@ TEST(SinewRegister, BotschBarTwistFromFixedAndHandleRegions) {
                             {"units", "mm"},
                             {"mesh", {{"cell_size_fraction", 0.1}}},
                             {"attachments", attachments},
-                            {"stop", {{"max_iterations", 5}}}};
+                            {"stop", {{"max_iterations", 2}}}};
   write_text(dir / "case.json", c.dump(1));
   const RunOutcome o = run_case(dir);
   std::cout << o.result.out;
