@@ -4,6 +4,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <exception>
+#include <new>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -22,6 +24,25 @@ struct ReadError {
 [[noreturn]] inline void fail_line(const std::string& file, long long line,
                                    const std::string& what) {
   throw ReadError{file + ":" + std::to_string(line) + ": " + what};
+}
+
+/// Runs a reader body and turns whatever it throws into Result::error, one line naming path:
+/// the single place where the public read_* entry points catch.
+template <class Result, class Body>
+Result guarded_read(const std::string& path, const Body& body) {
+  Result failed;
+  try {
+    return body();
+  } catch (const ReadError& e) {
+    failed.error = e.message;
+  } catch (const std::bad_alloc&) {
+    failed.error = path + ": out of memory while reading";
+  } catch (const std::exception& e) {
+    failed.error = path + ": " + e.what();
+  } catch (...) {
+    failed.error = path + ": unknown error while reading";
+  }
+  return failed;
 }
 
 /// The whole file as bytes. Throws ReadError "file: cannot open file (reason)".

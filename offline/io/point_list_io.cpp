@@ -618,23 +618,6 @@ Kind kind_of(const std::string& path) {
   return Kind::unknown;
 }
 
-template <class Result, class Body>
-Result guarded(const std::string& path, const Body& body) {
-  Result failed;
-  try {
-    return body();
-  } catch (const ReadError& e) {
-    failed.error = e.message;
-  } catch (const std::bad_alloc&) {
-    failed.error = path + ": out of memory while reading";
-  } catch (const std::exception& e) {
-    failed.error = path + ": " + e.what();
-  } catch (...) {
-    failed.error = path + ": unknown error while reading";
-  }
-  return failed;
-}
-
 }  // namespace
 
 const char* to_string(CoordinateSystem system) {
@@ -650,7 +633,7 @@ const char* to_string(CoordinateSystem system) {
 }
 
 PointListReadResult read_point_list(const std::string& path) {
-  return guarded<PointListReadResult>(path, [&] {
+  return detail::guarded_read<PointListReadResult>(path, [&] {
     RawPoints raw;
     switch (kind_of(path)) {
       case Kind::csv:
@@ -693,7 +676,7 @@ bool convert_coordinate_system(PointList& list, CoordinateSystem target, std::st
 }
 
 PointPairsReadResult read_point_pairs(const std::string& path) {
-  return guarded<PointPairsReadResult>(path, [&] {
+  return detail::guarded_read<PointPairsReadResult>(path, [&] {
     RawPairs raw;
     switch (kind_of(path)) {
       case Kind::csv:

@@ -854,10 +854,10 @@ void append_vertices(std::string& out, const SurfaceMesh& mesh, const char* pref
 
 SurfaceMeshReadResult read_surface_mesh(const std::string& path,
                                         const SurfaceMeshReadOptions& options) {
-  SurfaceMeshReadResult failed;
-  try {
+  return detail::guarded_read<SurfaceMeshReadResult>(path, [&] {
     const std::string ext = detail::to_lower(std::filesystem::path(path).extension().string());
     if (ext != ".obj" && ext != ".off" && ext != ".stl" && ext != ".ply") {
+      SurfaceMeshReadResult failed;
       failed.error = path + ": unknown surface-mesh extension " +
                      quote_token(ext.empty() ? std::string("(none)") : ext) +
                      " (expected .obj, .off, .stl or .ply)";
@@ -874,16 +874,7 @@ SurfaceMeshReadResult read_surface_mesh(const std::string& path,
     else
       raw = read_ply(path, bytes);
     return finish(raw, options);
-  } catch (const ReadError& e) {
-    failed.error = e.message;
-  } catch (const std::bad_alloc&) {
-    failed.error = path + ": out of memory while reading";
-  } catch (const std::exception& e) {
-    failed.error = path + ": " + e.what();
-  } catch (...) {
-    failed.error = path + ": unknown error while reading";
-  }
-  return failed;
+  });
 }
 
 std::string SurfaceCheck::report() const {
