@@ -52,7 +52,8 @@ TEST(BrentMinimise, FindsSmoothAndKinkedMinima) {
   EXPECT_NEAR(walled.x, 0.45, 2e-3);
 }
 
-// A bar of 8x3x3 cubes of 2.5 cm (0.2 x 0.075 x 0.075 m), face x = 0 attached at rest.
+// A bar of nx x n x n cubes of side h (default 8x3x3 of 2.5 cm: 0.2 x 0.075 x 0.075 m), face
+// x = 0 attached at rest.
 struct Bar {
   testing::TetMesh mesh;
   std::optional<PlasticElasticEnergy> energy;
@@ -60,9 +61,9 @@ struct Bar {
   double length = 0.2;
 };
 
-Bar make_bar() {
+Bar make_bar(int nx = 8, int n = 3, double h = 0.025) {
   Bar bar;
-  bar.mesh = testing::make_box_mesh(8, 3, 3, 0.025);
+  bar.mesh = testing::make_box_mesh(nx, n, n, h);
   bar.energy = PlasticElasticEnergy::create(bar.mesh.rest_positions, bar.mesh.tets, soft_tissue());
   for (int v = 0; v < bar.mesh.rest_positions.rows(); ++v) {
     const Eigen::Vector3d X = bar.mesh.rest_positions.row(v).transpose();
@@ -109,26 +110,44 @@ std::set<int> surface_vertices(const testing::TetMesh& mesh) {
   return on_surface;
 }
 
+// The "scan": the equilibrium of the bar under the true plastic field, and the surface vertices
+// away from the attached face in a seeded random order (marker candidates).
+struct Truth {
+  Eigen::VectorXd s;
+  Eigen::VectorXd x;
+  std::set<int> surface;
+  std::vector<int> candidates;
+};
+
+Truth make_truth(const Bar& bar, unsigned seed) {
+  Truth truth;
+  auto springs =
+      PointConstraints::create(bar.mesh.rest_positions.rows(), bar.mesh.tets, bar.attachments);
+  EXPECT_TRUE(springs.has_value());
+  auto equilibrium = EquilibriumSolver::create(*bar.energy, *springs);
+  EXPECT_TRUE(equilibrium.has_value());
+  truth.s = true_plastic_field(bar);
+  truth.x = bar.energy->rest_dofs();
+  EXPECT_TRUE(equilibrium->solve(truth.s, truth.x).converged());
+  truth.surface = surface_vertices(bar.mesh);
+  for (int v : truth.surface) {
+    if (bar.mesh.rest_positions(v, 0) > 1e-9) truth.candidates.push_back(v);
+  }
+  std::mt19937 rng(seed);
+  std::shuffle(truth.candidates.begin(), truth.candidates.end(), rng);
+  return truth;
+}
+
 TEST(GaussNewton, RecoversAKnownPlasticFieldFromSparseLandmarks) {
   Bar bar = make_bar();
   ASSERT_TRUE(bar.energy.has_value());
-  auto springs =
-      PointConstraints::create(bar.mesh.rest_positions.rows(), bar.mesh.tets, bar.attachments);
-  ASSERT_TRUE(springs.has_value());
-  auto equilibrium = EquilibriumSolver::create(*bar.energy, *springs);
-  ASSERT_TRUE(equilibrium.has_value());
-  const Eigen::VectorXd s_true = true_plastic_field(bar);
-  Eigen::VectorXd x_true = bar.energy->rest_dofs();
-  ASSERT_TRUE(equilibrium->solve(s_true, x_true).converged());
+  const Truth truth = make_truth(bar, 7);
+  const Eigen::VectorXd& s_true = truth.s;
+  const Eigen::VectorXd& x_true = truth.x;
+  const std::set<int>& surface = truth.surface;
+  const std::vector<int>& candidates = truth.candidates;
 
   // 30% of the surface vertices (away from the attached face) as landmarks.
-  const std::set<int> surface = surface_vertices(bar.mesh);
-  std::vector<int> candidates;
-  for (int v : surface) {
-    if (bar.mesh.rest_positions(v, 0) > 1e-9) candidates.push_back(v);
-  }
-  std::mt19937 rng(7);
-  std::shuffle(candidates.begin(), candidates.end(), rng);
   const std::size_t count = (surface.size() * 30) / 100;
   RegistrationConstraints constraints;
   constraints.attachments = bar.attachments;
@@ -183,35 +202,13 @@ TEST(GaussNewton, RecoversAKnownPlasticFieldFromSparseLandmarks) {
 // Landmarks with correspondence on 30% of the vertices do recover it
 // (RecoversAKnownPlasticFieldFromSparseLandmarks).
 TEST(GaussNewton, DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers) {
-  Bar bar;
-  bar.mesh = testing::make_box_mesh(16, 4, 4, 0.0125);
-  bar.energy = PlasticElasticEnergy::create(bar.mesh.rest_positions, bar.mesh.tets, soft_tissue());
+  Bar bar = make_bar(16, 4, 0.0125);
   ASSERT_TRUE(bar.energy.has_value());
-  for (int v = 0; v < bar.mesh.rest_positions.rows(); ++v) {
-    const Eigen::Vector3d X = bar.mesh.rest_positions.row(v).transpose();
-    if (X.x() > 1e-9) continue;
-    PointConstraint c;
-    c.kind = ConstraintKind::kAttachment;
-    c.point = at_vertex(bar.mesh.tets, v);
-    c.target = X;
-    c.weight = 1e4;
-    bar.attachments.push_back(c);
-  }
-  auto springs =
-      PointConstraints::create(bar.mesh.rest_positions.rows(), bar.mesh.tets, bar.attachments);
-  auto equilibrium = EquilibriumSolver::create(*bar.energy, *springs);
-  ASSERT_TRUE(equilibrium.has_value());
-  const Eigen::VectorXd s_true = true_plastic_field(bar);
-  Eigen::VectorXd x_true = bar.energy->rest_dofs();
-  ASSERT_TRUE(equilibrium->solve(s_true, x_true).converged());
-
-  const std::set<int> surface = surface_vertices(bar.mesh);
-  std::vector<int> candidates;
-  for (int v : surface) {
-    if (bar.mesh.rest_positions(v, 0) > 1e-9) candidates.push_back(v);
-  }
-  std::mt19937 rng(11);
-  std::shuffle(candidates.begin(), candidates.end(), rng);
+  const Truth truth = make_truth(bar, 11);
+  const Eigen::VectorXd& s_true = truth.s;
+  const Eigen::VectorXd& x_true = truth.x;
+  const std::set<int>& surface = truth.surface;
+  const std::vector<int>& candidates = truth.candidates;
   const std::size_t count = (surface.size() * 5) / 100;
   RegistrationConstraints constraints;
   constraints.attachments = bar.attachments;
