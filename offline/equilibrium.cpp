@@ -1,5 +1,7 @@
 #include "offline/equilibrium.hpp"
 
+#include "offline/rigid_motion.hpp"
+
 #include <IpIpoptApplication.hpp>
 #include <IpJournalist.hpp>
 #include <IpSolveStatistics.hpp>
@@ -404,6 +406,12 @@ std::optional<EquilibriumSolver> EquilibriumSolver::create(const PlasticElasticE
   if (!exact) return fail("could not rebuild the plastic elastic energy (upper storage)");
 
   EquilibriumSolver solver(options, attachments, std::move(*exact));
+  solver.free_object_ = attachments.size() == 0;
+  if (solver.free_object_ && options.method != EquilibriumMethod::kNewton) {
+    return fail(
+        "a free object (no attachments) needs the Newton back end here; the stabilised Ipopt "
+        "problem of eqs. 18-20 is in offline/free_equilibrium.hpp");
+  }
   const bool need_projected = options.stiffness_projection == StiffnessProjection::kAlways ||
                               (options.method == EquilibriumMethod::kNewton &&
                                options.stiffness_projection == StiffnessProjection::kOnFailure);
@@ -553,6 +561,11 @@ bool EquilibriumSolver::assemble_total_stiffness(const Eigen::Ref<const Eigen::V
   std::fill(t, t + total_.nonZeros(), 0.0);
   for (const auto& [src, dst] : stiffness_map_) t[dst] += k[src];
   for (const auto& [src, dst] : attachment_map_) t[dst] += a[src];
+  if (pins_) {
+    const double diagonal =
+        Eigen::Map<const Eigen::VectorXd>(t, total_.nonZeros()).cwiseAbs().maxCoeff();
+    pin_dofs(total_, *pins_, diagonal > 0.0 ? diagonal : 1.0);
+  }
   assembly_seconds_ += seconds_since(start);
   return Eigen::Map<const Eigen::VectorXd>(t, total_.nonZeros()).allFinite();
 }
@@ -612,6 +625,18 @@ EquilibriumSummary EquilibriumSolver::solve_newton(const Eigen::Ref<const Eigen:
                                                    EquilibriumSummary summary) {
   double energy = *summary.energy;
   const double c1 = options_.armijo_parameter;
+  // A free object (no attachments): K_total is singular along the rigid motions (§3.6), so six
+  // dofs chosen from the start x are held fixed. Π is invariant under rigid motions, so the
+  // minimum of the pinned problem is an equilibrium of the free one (the pinned rows of f_net
+  // follow from the others by Σ f = 0 and Σ x × f = 0); the caller fixes the rigid frame
+  // afterwards (offline/rigid_stabilisation.hpp, eqs. 19–20).
+  if (free_object_) {
+    pins_ = rigid_pin_dofs(x);
+    if (!pins_) {
+      summary.status = EquilibriumStatus::kInvalidInput;
+      return summary;
+    }
+  }
   for (int iteration = 0;; ++iteration) {
     const double residual = gradient_.lpNorm<Eigen::Infinity>();
     summary.iterations = iteration;
@@ -649,7 +674,14 @@ EquilibriumSummary EquilibriumSolver::solve_newton(const Eigen::Ref<const Eigen:
       summary.status = EquilibriumStatus::kNotPositiveDefinite;
       return summary;
     }
-    if (cholesky_.solve(gradient_, step_) != SparseCholeskyStatus::kOk || !step_.allFinite()) {
+    // A free object: the pinned dofs do not move (their rows of K_total are identity rows), the
+    // others take the Newton step of the pinned problem.
+    if (pins_) {
+      trial_ = gradient_;
+      for (Eigen::Index p : *pins_) trial_[p] = 0.0;
+    }
+    if (cholesky_.solve(pins_ ? trial_ : gradient_, step_) != SparseCholeskyStatus::kOk ||
+        !step_.allFinite()) {
       summary.status = EquilibriumStatus::kNonFinite;
       return summary;
     }

@@ -21,10 +21,16 @@
 /// element face, or against the largest force in play when attachments pull harder than that (so
 /// that round-off in the cancellation f_e + f_a cannot stall a stiff-spring solve).
 ///
+/// Free objects (an empty attachment set, §3.6): Π is invariant under rigid motions and K_total is
+/// singular along them; the Newton back end then holds six dofs of the start x fixed
+/// (offline/rigid_motion.hpp) and returns one equilibrium of the six-dimensional family, which the
+/// caller moves to its rigid frame (offline/rigid_stabilisation.hpp). kIpopt is refused there.
+///
 /// Ipopt's and CHOLMOD's headers stay in equilibrium.cpp / sparse_cholesky.cpp.
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -242,6 +248,9 @@ class EquilibriumSolver {
   int rejected_inversions_ = 0;
   double assembly_seconds_ = 0.0;
   double last_force_scale_ = 0.0;
+  // Free object (no attachments): six pinned dofs per Newton solve, chosen from its start x.
+  bool free_object_ = false;
+  std::optional<std::array<Eigen::Index, 6>> pins_;
 };
 
 }  // namespace sinew::offline
