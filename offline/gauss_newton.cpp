@@ -2,6 +2,9 @@
 
 #include <nlopt.hpp>
 
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -35,6 +38,12 @@ Eigen::MatrixXd rest_matrix(const PlasticElasticEnergy& energy) {
   return V;
 }
 
+// Rigid rounds of one (R, t) update: landmarks have fixed correspondences (one Kabsch fit is
+// exact), ICP markers alternate closest points and fits.
+int rigid_rounds(RegistrationStage stage) {
+  return stage == RegistrationStage::kLandmarks ? 1 : 10;
+}
+
 // The state of one registration run: the solvers built once, and the current (s, x).
 class Registration {
  public:
@@ -49,17 +58,62 @@ class Registration {
         laplacian_(std::move(laplacian)),
         constraints_(constraints),
         closest_point_(closest_point),
-        options_(options) {}
+        options_(options),
+        free_(springs.size() == 0) {}
 
   Eigen::VectorXd s;
   Eigen::VectorXd x;
   int equilibrium_solves = 0;
 
   // Solves the equilibrium for plastic state s_trial from x_trial (in/out); true when converged.
+  // A free object's equilibrium is then moved to the current rigid frame (eqs. 19–20).
   bool solve_equilibrium(const Eigen::VectorXd& s_trial, Eigen::VectorXd& x_trial) {
     ++equilibrium_solves;
     const EquilibriumSummary summary = equilibrium_.solve(s_trial, x_trial);
-    return summary.converged();
+    if (!summary.converged()) return false;
+    return !free_ || !stabilisation_ || stabilisation_->move_to(frame_, x_trial);
+  }
+
+  bool free_object() const { return free_; }
+
+  // Free objects: the stabilisation set D = the material points of the stage's terms (§3.6), and
+  // the frame (R, t) that x satisfies now; line-search equilibria keep it.
+  bool set_stabilisation(const PointConstraints& terms, const Eigen::VectorXd& at,
+                         std::string* why) {
+    std::vector<EmbeddedPoint> points;
+    for (const PointConstraint& c : terms.constraints()) points.push_back(c.point);
+    stabilisation_ = RigidStabilisation::create(energy_.tets(), energy_.rest_dofs(), points, why);
+    if (!stabilisation_) return false;
+    const std::optional<RigidFrame> frame = stabilisation_->frame(at);
+    if (!frame) {
+      if (why != nullptr) *why = "the marker points are mirrored or flat in the current shape";
+      stabilisation_.reset();
+      return false;
+    }
+    frame_ = *frame;
+    return true;
+  }
+
+  // Free objects, the (R, t) half of the block-coordinate descent (§3.6): the rigid motion of x
+  // that minimises the stage's marker misfit (Kabsch on the correspondences; ICP markers re-find
+  // their closest points between fits). The elastic state is unchanged (Π is rigid-invariant).
+  void rigid_update(RegistrationStage stage, Eigen::VectorXd& at, int max_rounds) {
+    for (int round = 0; round < max_rounds; ++round) {
+      auto terms = objective_constraints(stage, at, nullptr);
+      if (!terms || terms->size() < 3) return;
+      std::vector<Eigen::Vector3d> from, to;
+      std::vector<double> weights;
+      for (Eigen::Index k = 0; k < terms->size(); ++k) {
+        from.push_back(terms->position(k, at));
+        to.push_back(-terms->offset(k));
+        weights.push_back(terms->weight(k));
+      }
+      const std::optional<RigidTransform> fit = fit_rigid_transform(from, to, weights);
+      if (!fit) return;
+      fit->apply_to_dofs(at);
+      const double angle = Eigen::AngleAxisd(fit->rotation).angle();
+      if (angle < 1e-12 && fit->translation.norm() < 1e-12 * diagonal_) return;
+    }
   }
 
   // The objective constraints of a stage at positions x (ICP closest points found at x).
@@ -143,7 +197,9 @@ class Registration {
         stage == RegistrationStage::kAttachments ? options_.attachment_stage_damping_floor : 0.0;
     Clock::time_point start = Clock::now();
     std::optional<ConstraintJacobian> jacobian =
-        constraint_jacobian(energy_, springs_, terms, s, x, tangent_, why);
+        free_ ? free_constraint_jacobian(energy_, terms, *stabilisation_, frame_, s, x,
+                                         free_tangent_, why)
+              : constraint_jacobian(energy_, springs_, terms, s, x, tangent_, why);
     record.jacobian_seconds = seconds_since(start);
     if (!jacobian) return false;
 
@@ -181,6 +237,15 @@ class Registration {
   const RegistrationConstraints& constraints_;
   ClosestSurfacePoint* closest_point_;
   GaussNewtonOptions options_;
+  // Free objects (no springs): the pinned tangent, the stabilisation and its frame.
+  bool free_ = false;
+  RigidNullspaceSolver free_tangent_;
+  std::optional<RigidStabilisation> stabilisation_;
+  RigidFrame frame_;
+  double diagonal_ = 1.0;
+
+ public:
+  void set_diagonal(double diagonal) { diagonal_ = diagonal; }
 };
 
 // NLopt's C callback for the constant-s fit.
@@ -204,6 +269,8 @@ double constant_fit_objective(unsigned n, const double* a, double* /*gradient*/,
   if (clamp_plastic_state_eigenvalues(s_trial).clamped_tets > 0) return 1e300;
   Eigen::VectorXd x_trial = fit->best_x;
   if (!r.solve_equilibrium(s_trial, x_trial)) return 1e300;
+  // A free object takes its best rigid pose for this shape (block-coordinate descent, §3.6).
+  if (r.free_object()) r.rigid_update(fit->stage, x_trial, rigid_rounds(fit->stage));
   // Fresh closest points: this is the true ICP distance for the constant strain.
   auto terms = r.objective_constraints(fit->stage, x_trial, nullptr);
   if (!terms) return 1e300;
@@ -218,6 +285,53 @@ double constant_fit_objective(unsigned n, const double* a, double* /*gradient*/,
 
 }  // namespace
 
+namespace {
+
+// The weighted constraint rows [√c_k A_k] (r x 3n, sparse) and the residual [√c_k (A_k x + b_k)].
+struct WeightedRows {
+  Eigen::SparseMatrix<double> rows;
+  Eigen::VectorXd residual;
+};
+
+WeightedRows weighted_rows(const PointConstraints& terms,
+                           const Eigen::Ref<const Eigen::VectorXd>& x) {
+  const Eigen::Index r = 3 * terms.size();
+  WeightedRows result;
+  Eigen::VectorXd sqrt_c(r);
+  result.residual.resize(r);
+  for (Eigen::Index k = 0; k < terms.size(); ++k) {
+    const double root = std::sqrt(terms.weight(k));
+    sqrt_c.segment<3>(3 * k).setConstant(root);
+    result.residual.segment<3>(3 * k) = root * terms.residual(k, x);
+  }
+  result.rows = sqrt_c.asDiagonal() * terms.stacked_selection();
+  return result;
+}
+
+// Zᵀ = −(∂f/∂s)ᵀ W, one column of W at a time: Eigen's row-major sparse × dense product walks
+// rows of W (stride 3n) for all r columns at once, which is cache-hostile when W is 3n x 900.
+Eigen::MatrixXd z_transposed(const Eigen::SparseMatrix<double>& force_jacobian,
+                             const Eigen::MatrixXd& W) {
+  Eigen::MatrixXd Zt(force_jacobian.cols(), W.cols());
+  for (Eigen::Index j = 0; j < W.cols(); ++j) {
+    Zt.col(j).noalias() = -(force_jacobian.transpose() * W.col(j));
+  }
+  return Zt;
+}
+
+bool evaluate_tangent(PlasticElasticEnergy& energy, const Eigen::Ref<const Eigen::VectorXd>& s,
+                      const Eigen::Ref<const Eigen::VectorXd>& x, std::string* why) {
+  PlasticEnergyRequest request;
+  request.energy = false;
+  request.stiffness = true;
+  request.force_jacobian = true;
+  const PlasticEvaluation evaluation = energy.evaluate(s, x, request);
+  if (!evaluation.valid() && why != nullptr) *why = "tangent stiffness: " + evaluation.message();
+  return evaluation.valid();
+}
+
+}  // namespace
+
 std::optional<ConstraintJacobian> constraint_jacobian(PlasticElasticEnergy& energy,
                                                       const PointConstraints& springs,
                                                       const PointConstraints& terms,
@@ -228,12 +342,7 @@ std::optional<ConstraintJacobian> constraint_jacobian(PlasticElasticEnergy& ener
     if (why != nullptr) *why = message;
     return std::nullopt;
   };
-  PlasticEnergyRequest request;
-  request.energy = false;
-  request.stiffness = true;
-  request.force_jacobian = true;
-  const PlasticEvaluation evaluation = energy.evaluate(s, x, request);
-  if (!evaluation.valid()) return fail("tangent stiffness: " + evaluation.message());
+  if (!evaluate_tangent(energy, s, x, why)) return std::nullopt;
   // ∂f_net/∂x = K + Σ_attachments c A_kᵀA_k.
   const Eigen::SparseMatrix<double> tangent_stiffness = energy.stiffness() + springs.hessian();
   SparseCholeskyStatus status = tangent.analysed() ? tangent.factorise(tangent_stiffness)
@@ -244,27 +353,46 @@ std::optional<ConstraintJacobian> constraint_jacobian(PlasticElasticEnergy& ener
   }
   // Z = −(√c A) K⁻¹ ∂f/∂s (eq. 12), through W = K⁻¹ (√c A)ᵀ (3n x 3K, one block solve): the
   // paper's "∂f_net/∂x z̃_k = −√c_k A_kᵀ", J never formed.
-  const Eigen::Index rows = 3 * terms.size();
-  ConstraintJacobian result;
-  Eigen::VectorXd sqrt_c(rows);
-  result.residual.resize(rows);
-  for (Eigen::Index k = 0; k < terms.size(); ++k) {
-    const double root = std::sqrt(terms.weight(k));
-    sqrt_c.segment<3>(3 * k).setConstant(root);
-    result.residual.segment<3>(3 * k) = root * terms.residual(k, x);
-  }
-  const Eigen::SparseMatrix<double> weighted_rows = sqrt_c.asDiagonal() * terms.stacked_selection();
-  const Eigen::MatrixXd rhs = Eigen::MatrixXd(weighted_rows.transpose());
+  WeightedRows rows = weighted_rows(terms, x);
+  const Eigen::MatrixXd rhs = Eigen::MatrixXd(rows.rows.transpose());
   Eigen::MatrixXd W(rhs.rows(), rhs.cols());
   if (tangent.solve(rhs, W) != SparseCholeskyStatus::kOk) return fail("tangent solve failed");
-  // Zᵀ = −(∂f/∂s)ᵀ W, one column of W at a time: Eigen's row-major sparse × dense product walks
-  // rows of W (stride 3n) for all r columns at once, which is cache-hostile when W is 3n x 900.
-  const Eigen::SparseMatrix<double>& G = energy.force_jacobian();
-  result.Zt.resize(G.cols(), W.cols());
-  for (Eigen::Index j = 0; j < W.cols(); ++j) {
-    result.Zt.col(j).noalias() = -(G.transpose() * W.col(j));
+  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W), std::move(rows.residual)};
+}
+
+std::optional<ConstraintJacobian> free_constraint_jacobian(
+    PlasticElasticEnergy& energy, const PointConstraints& terms,
+    const RigidStabilisation& stabilisation, const RigidFrame& frame,
+    const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
+    RigidNullspaceSolver& tangent, std::string* why) {
+  auto fail = [&](const std::string& message) -> std::optional<ConstraintJacobian> {
+    if (why != nullptr) *why = message;
+    return std::nullopt;
+  };
+  if (!evaluate_tangent(energy, s, x, why)) return std::nullopt;
+  const SparseCholeskyStatus status = tangent.factorise(energy.stiffness(), x);
+  if (status != SparseCholeskyStatus::kOk) {
+    return fail(std::string("pinned tangent stiffness at the free equilibrium: ") +
+                to_string(status));
   }
-  return result;
+  StabilisationJacobian G;
+  if (!stabilisation.jacobian(x, frame, G)) {
+    return fail("stabilisation constraints: the marker points' covariance is singular or mirrored");
+  }
+  // The equilibrium moves with s as dx = P·K⁺(−∂f/∂s ds): K⁺ by the Singular Lemma (ii), and
+  // P = I − Ψ(GΨ)⁻¹G adds the rigid motion that keeps eqs. 19–20 satisfied (G dx = 0). So
+  // Zᵀ = −(∂f/∂s)ᵀ K⁺ Pᵀ(√c A)ᵀ, and Pᵀ(√c A)ᵀ lies in the range of K (Ψᵀ Pᵀ = (PΨ)ᵀ = 0).
+  const Eigen::Matrix<double, Eigen::Dynamic, 6> psi = rigid_motion_basis(x, false);
+  const Eigen::Matrix<double, 6, 6> G_psi = G * psi;
+  Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(G_psi);
+  if (!lu.isInvertible()) return fail("stabilisation constraints do not fix the rigid motions");
+  WeightedRows rows = weighted_rows(terms, x);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd(rows.rows.transpose());
+  const Eigen::MatrixXd psi_t_rhs = psi.transpose() * rhs;  // 6 x r
+  rhs.noalias() -= G.transpose() * G_psi.transpose().fullPivLu().solve(psi_t_rhs);
+  Eigen::MatrixXd W;
+  if (tangent.solve(rhs, W) != SparseCholeskyStatus::kOk) return fail("tangent solve failed");
+  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W), std::move(rows.residual)};
 }
 
 const char* to_string(RegistrationStage stage) {
@@ -435,11 +563,13 @@ BrentResult brent_minimise(const std::function<double(double)>& f, double a, dou
   return result;
 }
 
-RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
-                                     const RegistrationConstraints& constraints,
-                                     ClosestSurfacePoint* closest_point,
-                                     const GaussNewtonOptions& options,
-                                     const GaussNewtonProgress& progress) {
+namespace {
+
+RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
+                                    const RegistrationConstraints& constraints,
+                                    ClosestSurfacePoint* closest_point,
+                                    const GaussNewtonOptions& options,
+                                    const GaussNewtonProgress& progress, bool free) {
   const Clock::time_point run_start = Clock::now();
   RegistrationResult result;
   result.s = identity_plastic_strains(energy_in.num_tets());
@@ -454,10 +584,19 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
   if (auto message = options.validate()) {
     return fail(GaussNewtonTermination::kInvalidInput, "GaussNewtonOptions: " + *message);
   }
-  if (constraints.attachments.empty()) {
+  if (!free && constraints.attachments.empty()) {
     return fail(GaussNewtonTermination::kInvalidInput,
-                "no attachments: an attached object needs attachments (free objects are not "
-                "supported by register_attached)");
+                "no attachments: an attached object needs attachments (use register_free for "
+                "un-attached objects)");
+  }
+  if (free && !constraints.attachments.empty()) {
+    return fail(GaussNewtonTermination::kInvalidInput,
+                "attachments given to register_free: use register_attached");
+  }
+  if (free && constraints.landmarks.size() < 3 && constraints.icp_markers.size() < 3) {
+    return fail(GaussNewtonTermination::kInvalidInput,
+                "a free object needs at least 3 landmarks or 3 ICP markers to fix its rigid "
+                "motion (eqs. 19-20)");
   }
   if (!constraints.icp_markers.empty() && closest_point == nullptr) {
     return fail(GaussNewtonTermination::kInvalidInput,
@@ -497,11 +636,35 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
                  laplacian.matrix, constraints, closest_point, options);
   r.s = result.s;
   r.x = result.x;
+  {
+    const Eigen::MatrixXd rest = rest_matrix(energy_in);
+    r.set_diagonal((rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm());
+  }
+  if (free) {
+    // §3.6: start from a rigid alignment of the template to the scan (landmark correspondences,
+    // or centroids and ICP), so that any pose of the scan frame works.
+    if (constraints.landmarks.size() >= 3) {
+      std::vector<Eigen::Vector3d> from, to;
+      for (const PointConstraint& c : constraints.landmarks) {
+        from.push_back(embedded_position(energy_in.tets(), c.point, r.x));
+        to.push_back(c.target);
+      }
+      if (const auto fit = fit_rigid_transform(from, to)) fit->apply_to_dofs(r.x);
+    } else {
+      Eigen::Vector3d markers = Eigen::Vector3d::Zero(), vertices = Eigen::Vector3d::Zero();
+      for (const Eigen::Vector3d& z : constraints.icp_markers) markers += z;
+      markers /= static_cast<double>(constraints.icp_markers.size());
+      for (Eigen::Index v = 0; v < r.x.size() / 3; ++v) vertices += r.x.segment<3>(3 * v);
+      vertices /= static_cast<double>(r.x.size() / 3);
+      RigidTransform{Eigen::Matrix3d::Identity(), markers - vertices}.apply_to_dofs(r.x);
+      r.rigid_update(RegistrationStage::kIcpMarkers, r.x, 50);
+    }
+  }
   // The springs pull the template to the attachment targets first. When the targets are far (a
   // twisted bar, a bone in another pose) the direct solve may fail: then it is retried allowing
   // inverted tets on the way, directly and, failing that, with the targets moved from where the
   // template has its attachment points to where they belong in first_equilibrium_steps equal steps.
-  if (!r.solve_equilibrium(r.s, r.x)) {
+  if (!free && !r.solve_equilibrium(r.s, r.x)) {
     const Eigen::VectorXd s0 = r.s;
     r.x = energy_in.rest_dofs();
     ++r.equilibrium_solves;
@@ -529,7 +692,8 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
     }
   }
 
-  std::vector<RegistrationStage> stages{RegistrationStage::kAttachments};
+  std::vector<RegistrationStage> stages;
+  if (!free) stages.push_back(RegistrationStage::kAttachments);
   if (!constraints.landmarks.empty()) stages.push_back(RegistrationStage::kLandmarks);
   if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
   const RegistrationStage final_stage = stages.back();
@@ -545,6 +709,12 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
     const int solves_before = r.equilibrium_solves;
     ConstantFitData fit{&r,        RegistrationStage::kInitialFit, r.x,
                         kInfinity, identity_plastic_strain(),      0};
+    if (free) {
+      auto terms = r.objective_constraints(RegistrationStage::kInitialFit, r.x, &error);
+      if (!terms || !r.set_stabilisation(*terms, r.x, &error)) {
+        return fail(GaussNewtonTermination::kInvalidInput, error);
+      }
+    }
     std::vector<double> a(6);
     for (int i = 0; i < 6; ++i) a[static_cast<std::size_t>(i)] = identity_plastic_strain()[i];
     const double start_value = constant_fit_objective(6, a.data(), nullptr, &fit);
@@ -604,6 +774,11 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
         termination = GaussNewtonTermination::kSmallDecrease;
         break;
       }
+      if (r.free_object() && !r.set_stabilisation(*terms, r.x, &error)) {
+        termination = GaussNewtonTermination::kLinearSolveFailed;
+        summary.message = error;
+        break;
+      }
       if (!r.direction(stage, *terms, step, record, &error)) {
         termination = GaussNewtonTermination::kLinearSolveFailed;
         summary.message = error;
@@ -656,6 +831,7 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
       }
       r.s += best_eta * step;
       r.x = best_x;
+      if (free) r.rigid_update(stage, r.x, rigid_rounds(stage));
       record.step = best_eta;
       record.objective = best_value;
       std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
@@ -690,6 +866,24 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy_in,
   summary.equilibrium_solves = r.equilibrium_solves;
   summary.seconds = seconds_since(run_start);
   return result;
+}
+
+}  // namespace
+
+RegistrationResult register_attached(const PlasticElasticEnergy& energy,
+                                     const RegistrationConstraints& constraints,
+                                     ClosestSurfacePoint* closest_point,
+                                     const GaussNewtonOptions& options,
+                                     const GaussNewtonProgress& progress) {
+  return run_registration(energy, constraints, closest_point, options, progress, false);
+}
+
+RegistrationResult register_free(const PlasticElasticEnergy& energy,
+                                 const RegistrationConstraints& constraints,
+                                 ClosestSurfacePoint* closest_point,
+                                 const GaussNewtonOptions& options,
+                                 const GaussNewtonProgress& progress) {
+  return run_registration(energy, constraints, closest_point, options, progress, true);
 }
 
 }  // namespace sinew::offline

@@ -33,6 +33,8 @@
 #include "offline/constraints.hpp"
 #include "offline/equilibrium.hpp"
 #include "offline/plastic_elastic_energy.hpp"
+#include "offline/rigid_stabilisation.hpp"
+#include "offline/singular_solver.hpp"
 #include "offline/sparse_cholesky.hpp"
 #include "offline/surface_closest_point.hpp"
 #include "offline/woodbury_solver.hpp"
@@ -208,6 +210,20 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy,
                                      const GaussNewtonOptions& options = {},
                                      const GaussNewtonProgress& progress = {});
 
+/// Un-attached ("free-flying") objects, §3.6: no attachments, only landmarks and/or ICP markers
+/// (at least 3). The template is first aligned rigidly (landmark correspondences, else centroids
+/// and ICP); the equilibrium of each plastic state is found with six pinned dofs and moved to the
+/// rigid frame (R, t) of eqs. 19–20 over the stage's marker points; the Jacobian uses the
+/// Singular Lemma (ii) and the rigid correction that keeps eqs. 19–20 (free_constraint_jacobian);
+/// and after every accepted step (R, t) is re-fitted to the markers in closed form (Kabsch, with
+/// closest points re-found for ICP markers) — the block-coordinate descent of §3.6. Stages
+/// landmarks → ICP markers. Options as for register_attached (beta unused).
+RegistrationResult register_free(const PlasticElasticEnergy& energy,
+                                 const RegistrationConstraints& constraints,
+                                 ClosestSurfacePoint* closest_point,
+                                 const GaussNewtonOptions& options = {},
+                                 const GaussNewtonProgress& progress = {});
+
 /// The rows of the Gauss–Newton system for objective terms at (s, x): Z = −[√c_k A_k]·K⁻¹·∂f/∂s
 /// (eq. 12; r x 6m, r = 3·terms.size()), returned TRANSPOSED as Zt (6m x r, the layout the
 /// Woodbury solver and the products with it want), and the residual r = [√c_k (A_k x + b_k)] (r),
@@ -223,6 +239,16 @@ std::optional<ConstraintJacobian> constraint_jacobian(
     PlasticElasticEnergy& energy, const PointConstraints& springs, const PointConstraints& terms,
     const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
     SparseCholesky& tangent, std::string* why = nullptr);
+
+/// constraint_jacobian for a free object at a static equilibrium x satisfying eqs. 19–20 for
+/// frame: K (exact, full storage, singular along the rigid motions) is factorised with six pinned
+/// dofs in tangent, and Z = −C·P·K⁺·∂f/∂s with K⁺ the Singular Lemma (ii) solve and P = I −
+/// Ψ(GΨ)⁻¹G the rigid correction that keeps the stabilisation constraints (G their Jacobian).
+std::optional<ConstraintJacobian> free_constraint_jacobian(
+    PlasticElasticEnergy& energy, const PointConstraints& terms,
+    const RigidStabilisation& stabilisation, const RigidFrame& frame,
+    const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
+    RigidNullspaceSolver& tangent, std::string* why = nullptr);
 
 /// Brent's 1D minimisation of f on [a, b] (golden section + parabolic steps), at most
 /// max_evaluations calls, stopping when the bracket is below tolerance·(b − a). Returns the best
