@@ -1,5 +1,6 @@
 #include "offline/equilibrium.hpp"
 
+#include "offline/detail/ipopt_capture.hpp"
 #include "offline/rigid_motion.hpp"
 
 #include <IpIpoptApplication.hpp>
@@ -79,51 +80,6 @@ const char* ipopt_status_name(int code) {
       return "Internal_Error";
   }
   return "unknown";
-}
-
-// Collects what Ipopt prints in one category (the derivative checker's J_NLP messages).
-class CaptureJournal : public Ipopt::Journal {
- public:
-  CaptureJournal() : Ipopt::Journal("sinew-capture", Ipopt::J_NONE) {}
-  const std::string& text() const { return text_; }
-
- protected:
-  void PrintImpl(Ipopt::EJournalCategory, Ipopt::EJournalLevel, const char* str) override {
-    text_ += str;
-  }
-  void PrintfImpl(Ipopt::EJournalCategory, Ipopt::EJournalLevel, const char* pformat,
-                  va_list ap) override {
-    char buffer[1024];
-    va_list copy;
-    va_copy(copy, ap);
-    const int n = std::vsnprintf(buffer, sizeof(buffer), pformat, copy);
-    va_end(copy);
-    if (n > 0)
-      text_.append(buffer, std::min<std::size_t>(static_cast<std::size_t>(n), sizeof(buffer) - 1));
-  }
-  void FlushBufferImpl() override {}
-
- private:
-  std::string text_;
-};
-
-// The error count of Ipopt's derivative checker from its messages, if it reported one.
-// Its verdict line, or else the number of flagged entries (lines starting with "*").
-std::optional<int> parse_derivative_test(const std::string& text) {
-  const std::string key = "Derivative checker detected ";
-  const std::size_t at = text.find(key);
-  int errors = 0;
-  if (at != std::string::npos && std::sscanf(text.c_str() + at + key.size(), "%d", &errors) == 1) {
-    return errors;
-  }
-  if (text.find("No errors detected by derivative checker") != std::string::npos) return 0;
-  int flagged = 0;
-  for (std::size_t p = 0; p < text.size(); p = text.find('\n', p) + 1) {
-    if (text[p] == '*') ++flagged;
-    if (text.find('\n', p) == std::string::npos) break;
-  }
-  if (flagged > 0) return flagged;
-  return std::nullopt;
 }
 
 }  // namespace
@@ -729,7 +685,7 @@ EquilibriumSummary EquilibriumSolver::solve_ipopt(const Eigen::Ref<const Eigen::
   const Eigen::VectorXd x0 = x;
   const Eigen::Ref<const Eigen::VectorXd> x0_ref(x0);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = new Ipopt::IpoptApplication();
-  Ipopt::SmartPtr<CaptureJournal> journal;
+  Ipopt::SmartPtr<detail::CaptureJournal> journal;
   Ipopt::SmartPtr<detail::EquilibriumIpoptProblem> problem =
       new detail::EquilibriumIpoptProblem(this, &s, &x0_ref);
   Ipopt::ApplicationReturnStatus status = Ipopt::Internal_Error;
@@ -761,7 +717,7 @@ EquilibriumSummary EquilibriumSolver::solve_ipopt(const Eigen::Ref<const Eigen::
     status = app->Initialize();
     if (status == Ipopt::Solve_Succeeded) {
       if (options_.ipopt_derivative_test != IpoptDerivativeTest::kNone) {
-        journal = new CaptureJournal();
+        journal = new detail::CaptureJournal();
         // Ipopt 3.11.9 prints the checker's verdict above J_SUMMARY: capture up to J_ITERSUMMARY.
         journal->SetAllPrintLevels(Ipopt::J_ITERSUMMARY);
         app->Jnlst()->AddJournal(Ipopt::GetRawPtr(journal));
@@ -773,7 +729,7 @@ EquilibriumSummary EquilibriumSolver::solve_ipopt(const Eigen::Ref<const Eigen::
   }
   summary.ipopt_return_code = static_cast<int>(status);
   if (Ipopt::IsValid(journal))
-    summary.derivative_test_errors = parse_derivative_test(journal->text());
+    summary.derivative_test_errors = detail::parse_derivative_test(journal->text());
   if (Ipopt::IsValid(app->Statistics())) summary.iterations = app->Statistics()->IterationCount();
 
   // Keep Ipopt's final point only if it is a valid state no worse than x0.

@@ -28,26 +28,7 @@ Eigen::Matrix3d rotation(double degrees, Eigen::Vector3d axis) {
   return Eigen::AngleAxisd(degrees * EIGEN_PI / 180.0, axis.normalized()).toRotationMatrix();
 }
 
-// A 3x2x2 box of 5 cm cubes with a smooth, anisotropic plastic field (no attachments).
-struct FreeBlock {
-  testing::TetMesh mesh = testing::make_box_mesh(3, 2, 2, 0.05);
-  std::optional<PlasticElasticEnergy> energy =
-      PlasticElasticEnergy::create(mesh.rest_positions, mesh.tets, soft_tissue());
-  Eigen::VectorXd s;
-  FreeBlock() {
-    const Eigen::Index m = mesh.tets.rows();
-    s.resize(6 * m);
-    for (Eigen::Index t = 0; t < m; ++t) {
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (int a = 0; a < 4; ++a) c += mesh.rest_positions.row(mesh.tets(t, a)).transpose() / 4;
-      Eigen::Matrix3d Fp = Eigen::Matrix3d::Identity();
-      Fp(0, 0) += 2.0 * c.x();                   // stretch growing along x
-      Fp(1, 1) += 0.3 * std::sin(20.0 * c.x());  // a transverse wave
-      Fp(0, 2) = Fp(2, 0) = 1.5 * c.y();         // shear
-      s.segment<6>(6 * t) = plastic_strain_vector(Fp);
-    }
-  }
-};
+using testing::FreeBlock;
 
 Eigen::VectorXd free_equilibrium(FreeBlock& block) {
   auto none = PointConstraints::create(block.mesh.rest_positions.rows(), block.mesh.tets, {});

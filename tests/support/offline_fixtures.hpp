@@ -1,13 +1,19 @@
 #pragma once
-/// Shared pieces of the offline/ tests: a soft-tissue material and material points at vertices.
+/// Shared pieces of the offline/ tests: a soft-tissue material, material points at vertices, and a
+/// free block with a non-uniform plastic field.
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <cmath>
+#include <optional>
 
 #include "common/fem/sparse_assembly.hpp"
 #include "common/material/stable_neo_hookean.hpp"
 #include "offline/constraints.hpp"
+#include "offline/plastic_elastic_energy.hpp"
+#include "offline/plastic_strain.hpp"
+#include "tests/support/tet_mesh_fixtures.hpp"
 
 namespace sinew::testing {
 
@@ -35,5 +41,26 @@ inline offline::EmbeddedPoint at_vertex(const common::TetIndices& tets, int v) {
   ADD_FAILURE() << "vertex " << v << " is in no tet";
   return {};
 }
+
+// A 3x2x2 box of 5 cm cubes with a smooth, anisotropic plastic field (no attachments).
+struct FreeBlock {
+  TetMesh mesh = make_box_mesh(3, 2, 2, 0.05);
+  std::optional<offline::PlasticElasticEnergy> energy =
+      offline::PlasticElasticEnergy::create(mesh.rest_positions, mesh.tets, soft_tissue());
+  Eigen::VectorXd s;
+  FreeBlock() {
+    const Eigen::Index m = mesh.tets.rows();
+    s.resize(6 * m);
+    for (Eigen::Index t = 0; t < m; ++t) {
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (int a = 0; a < 4; ++a) c += mesh.rest_positions.row(mesh.tets(t, a)).transpose() / 4;
+      Eigen::Matrix3d Fp = Eigen::Matrix3d::Identity();
+      Fp(0, 0) += 2.0 * c.x();                   // stretch growing along x
+      Fp(1, 1) += 0.3 * std::sin(20.0 * c.x());  // a transverse wave
+      Fp(0, 2) = Fp(2, 0) = 1.5 * c.y();         // shear
+      s.segment<6>(6 * t) = offline::plastic_strain_vector(Fp);
+    }
+  }
+};
 
 }  // namespace sinew::testing
