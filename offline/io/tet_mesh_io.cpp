@@ -567,6 +567,8 @@ TetMeshReadResult validate(const RawMesh& raw, const TetMeshReadOptions& options
       nv > 0 ? (mesh.vertices.colwise().maxCoeff() - mesh.vertices.colwise().minCoeff()).norm()
              : 0.0;
   const double tolerance = 1e-12 * diag * diag * diag;
+  std::vector<double> volumes(static_cast<std::size_t>(nt));
+  Eigen::Index negative = 0;
   for (Eigen::Index t = 0; t < nt; ++t) {
     const auto ts = static_cast<std::size_t>(t);
     const auto x = [&](int a) -> Eigen::Vector3d {
@@ -579,17 +581,37 @@ TetMeshReadResult validate(const RawMesh& raw, const TetMeshReadOptions& options
                             ", below 1e-12 * bbox_diagonal^3 = " + number(tolerance) + ")");
       return result;
     }
-    if (volume < 0) {
-      if (!options.fix_orientation) {
-        result.error = tet_error(
-            ts,
-            "is inverted (signed volume " + number(volume) +
-                "); positive orientation is required (fix_orientation swaps two of its vertices)");
-        return result;
-      }
-      std::swap(mesh.tets(t, 2), mesh.tets(t, 3));
-      ++result.flipped_tets;
+    if (volume < 0 && !options.fix_orientation) {
+      result.error = tet_error(
+          ts,
+          "is inverted (signed volume " + number(volume) +
+              "); positive orientation is required (fix_orientation swaps two of its vertices)");
+      return result;
     }
+    volumes[ts] = volume;
+    if (volume < 0) ++negative;
+  }
+  // All tets negative: the file's convention, fixed by swapping two vertices of every tet. Some
+  // negative: a folded (tangled) mesh or an inconsistent vertex order; either way the first tet
+  // of the minority orientation is named.
+  if (negative > 0 && negative < nt) {
+    const bool minority_negative = 2 * negative <= nt;
+    const Eigen::Index majority = minority_negative ? nt - negative : negative;
+    for (Eigen::Index t = 0; t < nt; ++t) {
+      const auto ts = static_cast<std::size_t>(t);
+      if ((volumes[ts] < 0) != minority_negative) continue;
+      result.error = tet_error(
+          ts, std::string("is ") + (minority_negative ? "inverted" : "positively oriented") +
+                  " (signed volume " + number(volumes[ts]) + ") while " + std::to_string(majority) +
+                  " of the " + std::to_string(nt) + " tets are " +
+                  (minority_negative ? "positive" : "negative") +
+                  ": mixed orientation (a folded mesh or an inconsistent vertex order)");
+      return result;
+    }
+  }
+  if (negative == nt) {
+    for (Eigen::Index t = 0; t < nt; ++t) std::swap(mesh.tets(t, 2), mesh.tets(t, 3));
+    result.flipped_tets = static_cast<int>(nt);
   }
   result.mesh = std::move(mesh);
   return result;

@@ -9,9 +9,13 @@
 ///
 /// After parsing, the mesh is validated: entry counts match the headers, element indices are in
 /// range, coordinates are finite, no tet repeats a vertex, and no tet is degenerate
-/// (|V| < 1e-12 · bbox_diagonal³). Negatively oriented tets are either fixed by swapping their
-/// last two vertices (TetMeshReadOptions::fix_orientation, default; counted in
-/// TetMeshReadResult::flipped_tets) or reported as an error.
+/// (|V| < 1e-12 · bbox_diagonal³). A mesh whose tets are ALL negatively oriented (a file
+/// convention) is fixed by swapping the last two vertices of every tet
+/// (TetMeshReadOptions::fix_orientation, default; counted in TetMeshReadResult::flipped_tets) or
+/// reported as an error. Mixed orientation (some tets negative, some positive: a folded mesh or
+/// an inconsistent vertex order) is always an error naming the first tet of the minority sign:
+///   liver.veg:40: element 5 is inverted (signed volume -0.0026) while 47 of the 48 tets are
+///   positive: mixed orientation (a folded mesh or an inconsistent vertex order)
 
 #include <Eigen/Core>
 #include <optional>
@@ -27,7 +31,8 @@ struct TetMesh {
 };
 
 struct TetMeshReadOptions {
-  /// Swap two vertices of negatively oriented tets (true) or report the first one as an error.
+  /// When every tet is negatively oriented: swap two vertices of each (true) or report the first
+  /// one as an error. Mixed orientation is an error either way.
   bool fix_orientation = true;
 };
 

@@ -519,10 +519,19 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
       return finish(TetMesherStatus::kNonManifoldSurface,
                     "CGAL rejected a face of the surface as non-manifold");
     }
-    if (CGAL::Polygon_mesh_processing::does_self_intersect(sm)) {
+    // The first intersecting pair found (not the first by index: the search is box-ordered).
+    // Faces of sm are the input faces in order (build_surface_mesh adds each one).
+    std::vector<std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>> crossing;
+    CGAL::Polygon_mesh_processing::self_intersections(sm, std::back_inserter(crossing),
+                                                      CGAL::parameters::maximum_number(1));
+    if (!crossing.empty()) {
       summary.check_seconds = seconds_since(start);
-      return finish(TetMesherStatus::kSelfIntersecting,
-                    "the surface intersects itself (two of its faces cross)");
+      const auto f = static_cast<std::size_t>(crossing.front().first);
+      const auto g = static_cast<std::size_t>(crossing.front().second);
+      std::ostringstream s;
+      s << "the surface intersects itself: faces " << std::min(f, g) << " and " << std::max(f, g)
+        << " cross";
+      return finish(TetMesherStatus::kSelfIntersecting, s.str());
     }
     summary.check_seconds = seconds_since(start);
     meshing_start = Clock::now();

@@ -345,15 +345,16 @@ TEST(TetMeshIo, UnknownExtensionAndUnreadableFileAreReported) {
   EXPECT_EQ(r.error.find('\n'), std::string::npos);
 }
 
-TEST(TetMeshIo, InvertedTetsAreFixedOrReported) {
+TEST(TetMeshIo, AllNegativeTetsAreFixedOrReported) {
+  // Every tet negatively oriented: a file convention, fixed by swapping two vertices of each.
   const auto dir = scratch_dir("tet_mesh_io_inverted");
   TetMesh box = box_mesh();
-  for (int t = 0; t < 48; t += 3) std::swap(box.tets(t, 0), box.tets(t, 1));  // 16 inverted tets
+  for (Eigen::Index t = 0; t < box.tets.rows(); ++t) std::swap(box.tets(t, 0), box.tets(t, 1));
   write_veg(dir / "inv.veg", box);
 
   const auto fixed = read_tet_mesh((dir / "inv.veg").string());
   ASSERT_TRUE(fixed.ok()) << fixed.error;
-  EXPECT_EQ(fixed.flipped_tets, 16);
+  EXPECT_EQ(fixed.flipped_tets, 48);
   for (Eigen::Index t = 0; t < 48; ++t) {
     const auto x = [&](int a) -> Eigen::Vector3d {
       return fixed.mesh->vertices.row(fixed.mesh->tets(t, a)).transpose();
@@ -369,6 +370,42 @@ TEST(TetMeshIo, InvertedTetsAreFixedOrReported) {
   EXPECT_EQ(reported.error.rfind((dir / "inv.veg").string() + ":36: element 1 is inverted", 0), 0u)
       << reported.error;
   EXPECT_EQ(reported.error.find('\n'), std::string::npos);
+}
+
+TEST(TetMeshIo, MixedOrientationIsReported) {
+  // Some tets negative, most positive: a folded mesh or an inconsistent vertex order, never
+  // silently "fixed". The first tet of the minority orientation is named.
+  const auto dir = scratch_dir("tet_mesh_io_mixed");
+  TetMesh box = box_mesh();
+  for (int t = 4; t < 48; t += 3) std::swap(box.tets(t, 0), box.tets(t, 1));  // 15 inverted tets
+  write_veg(dir / "mixed.veg", box);
+  const auto r = read_tet_mesh((dir / "mixed.veg").string());
+  EXPECT_FALSE(r.ok());
+  // Element 5 (tet 4) is on line 40.
+  EXPECT_EQ(r.error.rfind(
+                (dir / "mixed.veg").string() + ":40: element 5 is inverted (signed volume -", 0),
+            0u)
+      << r.error;
+  EXPECT_NE(r.error.find("while 33 of the 48 tets are positive: mixed orientation"),
+            std::string::npos)
+      << r.error;
+  EXPECT_EQ(r.error.find('\n'), std::string::npos);
+
+  // Mostly negative: the positive minority is named (element 2, line 37).
+  TetMesh flipped = box_mesh();
+  for (Eigen::Index t = 0; t < 48; ++t)
+    if (t % 3 != 1) std::swap(flipped.tets(t, 0), flipped.tets(t, 1));  // 32 inverted
+  write_veg(dir / "mostly_negative.veg", flipped);
+  const auto m = read_tet_mesh((dir / "mostly_negative.veg").string());
+  EXPECT_FALSE(m.ok());
+  EXPECT_EQ(m.error.rfind((dir / "mostly_negative.veg").string() +
+                              ":37: element 2 is positively oriented (signed volume ",
+                          0),
+            0u)
+      << m.error;
+  EXPECT_NE(m.error.find("while 32 of the 48 tets are negative: mixed orientation"),
+            std::string::npos)
+      << m.error;
 }
 
 TEST(TetMeshIo, ReadsTorusFromSharedData) {

@@ -29,6 +29,7 @@
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/surface_closest_point.hpp"
 #include "tests/support/run_tool.hpp"
+#include "tests/support/tet_mesh_fixtures.hpp"
 #include "tools/register/demo_case.hpp"
 #include "tools/register/surface_distance.hpp"
 
@@ -229,6 +230,39 @@ TEST(SinewRegister, StretchedBoxFromIcpMarkersInMillimetresAndMetres) {
 
 // --- bad inputs
 
+std::string obj_text(const SurfaceMesh& mesh) {
+  std::ostringstream s;
+  s.precision(17);
+  for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v)
+    s << "v " << mesh.vertices(v, 0) << " " << mesh.vertices(v, 1) << " " << mesh.vertices(v, 2)
+      << "\n";
+  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f)
+    s << "f " << mesh.triangles(f, 0) + 1 << " " << mesh.triangles(f, 1) + 1 << " "
+      << mesh.triangles(f, 2) + 1 << "\n";
+  return s.str();
+}
+
+// Medit .mesh text: vertices on lines 5.., the Tetrahedra count on line 5 + #V + 2 and tet t
+// (0-based) on line 5 + #V + 3 + t.
+std::string medit_text(const Eigen::MatrixXd& vertices, const Eigen::MatrixXi& tets) {
+  std::ostringstream s;
+  s.precision(17);
+  s << "MeshVersionFormatted 1\nDimension 3\nVertices\n" << vertices.rows() << "\n";
+  for (Eigen::Index v = 0; v < vertices.rows(); ++v)
+    s << vertices(v, 0) << " " << vertices(v, 1) << " " << vertices(v, 2) << " 0\n";
+  s << "Tetrahedra\n" << tets.rows() << "\n";
+  for (Eigen::Index t = 0; t < tets.rows(); ++t)
+    s << tets(t, 0) + 1 << " " << tets(t, 1) + 1 << " " << tets(t, 2) + 1 << " " << tets(t, 3) + 1
+      << " 0\n";
+  s << "End\n";
+  return s.str();
+}
+
+// The 4 x 1 x 1 box of the bad-input cases as a tet mesh: 4 cubes, 24 right-handed Kuhn tets.
+sinew::testing::TetMesh box_tets() {
+  return sinew::testing::make_box_mesh(4, 1, 1);
+}
+
 struct BadCase {
   std::string name;
   std::string case_text;                                   // case.json ("" = no case file)
@@ -251,13 +285,37 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
   };
   SurfaceMesh open = box;
   open.triangles.conservativeResize(open.triangles.rows() - 1, 3);
-  std::ostringstream open_obj;
-  for (Eigen::Index v = 0; v < open.vertices.rows(); ++v)
-    open_obj << "v " << open.vertices(v, 0) << " " << open.vertices(v, 1) << " "
-             << open.vertices(v, 2) << "\n";
-  for (Eigen::Index f = 0; f < open.triangles.rows(); ++f)
-    open_obj << "f " << open.triangles(f, 0) + 1 << " " << open.triangles(f, 1) + 1 << " "
-             << open.triangles(f, 2) + 1 << "\n";
+  const std::string open_obj = obj_text(open);
+  // Two boxes overlapping in one file: each closed and manifold, together self-intersecting.
+  SurfaceMesh crossed = box;
+  {
+    const Eigen::Index nv = box.vertices.rows(), nf = box.triangles.rows();
+    crossed.vertices.conservativeResize(2 * nv, 3);
+    crossed.vertices.bottomRows(nv) = box.vertices.rowwise() + Eigen::RowVector3d(2, 0.5, 0.25);
+    crossed.triangles.conservativeResize(2 * nf, 3);
+    crossed.triangles.bottomRows(nf) = box.triangles.array() + static_cast<int>(nv);
+  }
+  // The template with a NaN on the third vertex line.
+  std::string nan_obj = obj_text(box);
+  {
+    const auto third = nan_obj.find("\nv ", nan_obj.find("\nv ") + 1) + 1;
+    nan_obj.replace(third, nan_obj.find('\n', third) - third, "v 4 nan 0");
+  }
+  // Tet-mesh templates (Medit .mesh): 20 vertices (vertex v, 0-based, on line 5 + v), 24 tets
+  // (tet t on line 27 + t).
+  const sinew::testing::TetMesh tets = box_tets();
+  Eigen::MatrixXi mixed = tets.tets;
+  for (Eigen::Index t = 5; t < mixed.rows(); t += 7) std::swap(mixed(t, 0), mixed(t, 1));  // 3
+  Eigen::MatrixXi flat(tets.tets.rows() + 1, 4);  // + a tet on the bottom face of the first cube
+  flat << tets.tets, Eigen::RowVector4i(0, 1, 5, 6);
+  Eigen::MatrixXd inf_vertex = tets.rest_positions;
+  inf_vertex(7, 2) = std::numeric_limits<double>::infinity();
+  // JSON has no NaN or infinity: an infinite inline coordinate is a number that overflows.
+  std::string inf_inline = good.dump(1);
+  const std::size_t inf_at = inf_inline.find("4.5");
+  inf_inline.replace(inf_at, 3, "1e999");
+  const std::string inf_line =
+      std::to_string(1 + std::count(inf_inline.begin(), inf_inline.begin() + inf_at, '\n'));
 
   const std::vector<BadCase> cases = {
       {"missing_case", "", {}, "cannot open", "case.json"},
@@ -271,10 +329,11 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
        {},
        "unknown key 'attachmnets'",
        "case.json"},
-      {"missing_attachments",
+      // No attachments is a free object (§3.6), which needs 3 landmarks or ICP markers; 1 here.
+      {"free_object_with_one_marker",
        with([](auto& j) { j.erase("attachments"); }),
        {},
-       "'attachments'",
+       "free object (seed 003 §3.6), which needs at least 3 landmarks or 3 ICP markers",
        "case.json"},
       {"bad_units", with([](auto& j) { j["units"] = "cm"; }), {}, "units", "case.json"},
       {"bad_point",
@@ -313,15 +372,146 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
        "nope.obj"},
       {"open_template",
        with([](auto& j) { j["template"] = "open.obj"; }),
-       {{"open.obj", open_obj.str()}},
-       "cannot tet-mesh",
+       {{"open.obj", open_obj}},
+       "cannot tet-mesh the template surface: the surface is open: 3 edges belong to one face "
+       "only, e.g. edge (",
        "open.obj"},
+      {"self_intersecting_template",
+       with([](auto& j) { j["template"] = "crossed.obj"; }),
+       {{"crossed.obj", obj_text(crossed)}},
+       "cannot tet-mesh the template surface: the surface intersects itself: faces ",
+       "crossed.obj"},
+      {"nan_in_template_surface",
+       with([](auto& j) { j["template"] = "nan.obj"; }),
+       {{"nan.obj", nan_obj}},
+       "nan.obj:3: vertex has a non-finite coordinate (4 nan 0)",
+       "nan.obj"},
+      {"inf_in_template_tet_mesh",
+       with([](auto& j) {
+         j["template"] = "inf.mesh";
+         j.erase("mesh");
+       }),
+       {{"inf.mesh", medit_text(inf_vertex, tets.tets)}},
+       "inf.mesh:12: vertex 8 has a non-finite coordinate (2 1 inf)",
+       "inf.mesh"},
+      {"mixed_orientation_tets",
+       with([](auto& j) {
+         j["template"] = "mixed.mesh";
+         j.erase("mesh");
+       }),
+       {{"mixed.mesh", medit_text(tets.rest_positions, mixed)}},
+       "mixed.mesh:32: element 6 is inverted (signed volume -0.166667) while 21 of the 24 tets "
+       "are positive: mixed orientation",
+       "mixed.mesh"},
+      {"degenerate_tet",
+       with([](auto& j) {
+         j["template"] = "flat.mesh";
+         j.erase("mesh");
+       }),
+       {{"flat.mesh", medit_text(tets.rest_positions, flat)}},
+       "flat.mesh:51: element 25 is degenerate (signed volume 0",
+       "flat.mesh"},
+      {"inf_in_inline_marker",
+       inf_inline,
+       {},
+       "invalid JSON: number overflow parsing '1e999' (not a finite double)",
+       "case.json:" + inf_line + ":"},
+      {"nan_in_marker_file",
+       with([](auto& j) { j["icp_markers"] = "markers.csv"; }),
+       {{"markers.csv", "x,y,z\n1,0.5,0.5\n2,nan,0.5\n"}},
+       "markers.csv:3: field 2 (y) is not finite: 'nan'",
+       "markers.csv"},
+      {"inf_in_landmark_file",
+       with([](auto& j) { j["landmarks"] = "landmarks.csv"; }),
+       {{"landmarks.csv", "1,0.5,0.5,1,0.5,0.5\n2,0.5,0.5,2,0.5,1e999\n"}},
+       "landmarks.csv:2: field 6 (z) is not finite: '1e999'",
+       "landmarks.csv"},
+      {"far_icp_marker",
+       with([](auto& j) {
+         j["icp_markers"].push_back({400, 0.5, 0.5});
+       }),
+       {},
+       "case.json: icp_markers[1]: marker (400, 0.5, 0.5) is 396 from the template's bounding "
+       "box, 93.3 times its diagonal (the limit is 1); is it in the template's frame and units?",
+       "case.json"},
+      {"far_marker_in_file",
+       with([](auto& j) { j["icp_markers"] = "markers.csv"; }),
+       {{"markers.csv", "x,y,z\n1,0.5,0.5\n2,0.5,0.5\n2000,500,500\n"}},
+       "markers.csv: icp_markers[2]: marker (2000, 500, 500) is 2117 from",
+       "markers.csv"},
+      {"far_attachment_target",
+       with([](auto& j) {
+         j["attachments"][0]["target"] = {0, 0.5, -20};
+       }),
+       {},
+       "case.json: attachments[0]: target (0, 0.5, -20) is 20 from the template's bounding box",
+       "case.json"},
+      {"far_landmark_template_point",
+       with([](auto& j) {
+         j["landmarks"] = {{{"template", {2, 0.5, 0.5}}, {"target", {2, 0.5, 0.5}}},
+                           {{"template", {2, -9, 0.5}}, {"target", {2, 0.5, 0.5}}}};
+       }),
+       {},
+       "case.json: landmarks[1]: template point (2, -9, 0.5) is 9 from",
+       "case.json"},
+      {"empty_icp_marker_list",
+       with([](auto& j) { j["icp_markers"] = nlohmann::json::array(); }),
+       {},
+       "case.json: icp_markers is empty",
+       "case.json"},
+      {"empty_attachment_list",
+       with([](auto& j) { j["attachments"] = nlohmann::json::array(); }),
+       {},
+       "case.json: attachments is empty",
+       "case.json"},
+      {"empty_marker_file",
+       with([](auto& j) { j["icp_markers"] = "markers.csv"; }),
+       {{"markers.csv", "x,y,z\n"}},
+       "markers.csv: no points",
+       "markers.csv"},
+      {"empty_landmark_file",
+       with([](auto& j) { j["landmarks"] = "landmarks.json"; }),
+       {{"landmarks.json", "[]"}},
+       "no pairs",
+       "landmarks.json"},
+      {"template_is_a_folder",
+       with([](auto& j) { j["template"] = "folder.obj"; }),
+       {{"folder.obj/", ""}},
+       "folder.obj: cannot read: is a directory",
+       "folder.obj"},
+      {"marker_file_is_a_folder",
+       with([](auto& j) { j["icp_markers"] = "markers.csv"; }),
+       {{"markers.csv/", ""}},
+       "markers.csv: cannot read: is a directory",
+       "markers.csv"},
+      {"unknown_nested_key",
+       with([](auto& j) {
+         j["weights"] = {{"alhpa", 1e5}};
+       }),
+       {},
+       "case.json: unknown key 'alhpa' in weights (expected one of: alpha, beta, "
+       "attachment_stiffness)",
+       "case.json"},
       {"far_attachment",
        with([](auto& j) {
          j["attachments"][0]["template"] = {1000, 0.5, 0.5};
        }),
        {},
-       "attachments[0]",
+       "case.json: attachments[0]: template point (1000, 0.5, 0.5) is 996 from the template's "
+       "bounding box",
+       "case.json"},
+      // Within a diagonal of the box but 1.3 outside the tet mesh: caught when embedded (after
+      // meshing, which these options keep to about a second).
+      {"attachment_outside_mesh",
+       with([](auto& j) {
+         j["mesh"] = {{"cell_size_fraction", 0.12},
+                      {"facet_distance_fraction", 0.02},
+                      {"protect_sharp_features", true}};
+         j["attachments"][0]["template"] = {0, 0.5, -1.3};
+       }),
+       {},
+       "case.json: attachments[0]: template point is 1.3 from the template mesh (30.6% of its "
+       "diagonal)",
        "case.json"},
   };
   for (const auto& c : cases) {
@@ -329,16 +519,210 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
     const auto dir = scratch_dir("sinew_register_bad_" + c.name);
     ASSERT_TRUE(sinew::offline::io::write_obj((dir / "box.obj").string(), box));
     if (!c.case_text.empty()) write_text(dir / "case.json", c.case_text);
-    for (const auto& [name, text] : c.files) write_text(dir / name, text);
+    for (const auto& [name, text] : c.files) {
+      if (name.back() == '/') {
+        fs::create_directories(dir / name);  // a folder where a file is expected
+      } else {
+        write_text(dir / name, text);
+      }
+    }
     const auto r = run_tool(
         kTool + " --case " + (dir / "case.json").string() + " --out " + (dir / "out").string(),
         dir);
     EXPECT_EQ(r.exit_status, 2) << r.err;
-    EXPECT_NE(r.err.find(c.expected), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << "expected: " << c.expected << "\n"
+                                                         << r.err;
     EXPECT_NE(r.err.find(c.names_file), std::string::npos) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_FALSE(fs::exists(dir / "out")) << "nothing written on input errors";
   }
+}
+
+// A tet-mesh template whose tets are ALL negatively oriented is a file convention: the tool
+// reorients every tet, says so, and registers (the mixed case is an error, above).
+TEST(SinewRegister, AllNegativeTetMeshTemplateIsReoriented) {
+  const auto dir = scratch_dir("sinew_register_negative_tets");
+  sinew::testing::TetMesh mesh = sinew::testing::make_box_mesh(8, 2, 2, 5.0);  // 40 x 10 x 10 mm
+  for (Eigen::Index t = 0; t < mesh.tets.rows(); ++t) std::swap(mesh.tets(t, 2), mesh.tets(t, 3));
+  write_text(dir / "box.mesh", medit_text(mesh.rest_positions, mesh.tets));
+  StretchCase c = stretch_case(10.0, "mm");
+  c.json["template"] = "box.mesh";
+  c.json.erase("mesh");
+  write_text(dir / "case.json", c.json.dump(1));
+  const RunOutcome o = run_case(dir, " --max-iterations 3");
+  ASSERT_EQ(o.result.exit_status, 0) << o.result.err << o.result.out;
+  EXPECT_NE(o.result.out.find("template: tet mesh, 81 vertices, 192 tets (192 tets reoriented)"),
+            std::string::npos)
+      << o.result.out;
+  EXPECT_EQ(o.report["inputs"]["tets"].get<int>(), 192);
+  EXPECT_TRUE(fs::exists(dir / "out" / "result.vtu"));
+  EXPECT_LT(o.report["final"]["marker_error_max"].get<double>(),
+            o.report["iterations"][0]["marker_error_max"].get<double>());
+}
+
+// --- --batch: a manifest of cases, one output folder each, one case per Slurm array task.
+
+struct BatchFixture {
+  fs::path dir;       // the manifest's folder
+  fs::path manifest;  // dir / "batch.json"
+};
+
+// Three cases in cases/{mm,bad,m}/ (the middle one has an unknown key), outputs in results/,
+// all paths relative to the manifest.
+BatchFixture batch_fixture(const std::string& name) {
+  BatchFixture f;
+  f.dir = scratch_dir(name);
+  for (const auto& [unit, units] :
+       std::vector<std::pair<double, std::string>>{{10.0, "mm"}, {0.01, "m"}}) {
+    const fs::path folder = f.dir / "cases" / units;
+    fs::create_directories(folder);
+    const StretchCase c = stretch_case(unit, units);
+    sinew::offline::io::write_obj((folder / "box.obj").string(), c.surface);
+    write_text(folder / "case.json", c.json.dump(1));
+  }
+  fs::create_directories(f.dir / "cases" / "bad");
+  fs::copy_file(f.dir / "cases" / "mm" / "box.obj", f.dir / "cases" / "bad" / "box.obj");
+  nlohmann::json bad = nlohmann::json::parse(read_text(f.dir / "cases" / "mm" / "case.json"));
+  bad["icp_marker"] = bad["icp_markers"];
+  write_text(f.dir / "cases" / "bad" / "case.json", bad.dump(1));
+  const nlohmann::json manifest = {{"cases",
+                                    {{{"case", "cases/mm/case.json"}, {"out", "results/mm"}},
+                                     {{"case", "cases/bad/case.json"}, {"out", "results/bad"}},
+                                     {{"case", "cases/m/case.json"}, {"out", "results/m"}}}}};
+  f.manifest = f.dir / "batch.json";
+  write_text(f.manifest, manifest.dump(1));
+  return f;
+}
+
+void expect_result(const fs::path& out) {
+  SCOPED_TRACE(out.string());
+  for (const char* name : {"result_surface.obj", "result.vtu", "report.json"})
+    EXPECT_TRUE(fs::exists(out / name)) << name;
+  if (!fs::exists(out / "report.json")) return;
+  const auto report = nlohmann::json::parse(read_text(out / "report.json"));
+  EXPECT_TRUE(report["termination"].is_string() && !report["termination"].empty()) << report;
+  EXPECT_EQ(report["usable"], true) << report["termination"];
+}
+
+TEST(SinewRegister, BatchRunsEveryCaseAndContinuesPastAFailure) {
+  const BatchFixture f = batch_fixture("sinew_register_batch_all");
+  // From another working folder: the manifest's paths are relative to the manifest.
+  const auto r = run_tool("cd / && unset SLURM_ARRAY_TASK_ID && " + kTool + " --batch " +
+                              f.manifest.string() + " --max-iterations 30",
+                          f.dir);
+  std::cout << r.out << r.err;
+  EXPECT_EQ(r.exit_status, 1) << r.err;
+  expect_result(f.dir / "results" / "mm");
+  expect_result(f.dir / "results" / "m");
+  EXPECT_FALSE(fs::exists(f.dir / "results" / "bad")) << "nothing written for a bad case";
+  EXPECT_NE(r.out.find("batch " + f.manifest.string() + ": 2 of 3 cases registered, 1 failed"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("[1] bad input (exit 2)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("[0] registered"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("[2] registered"), std::string::npos) << r.out;
+  // stderr: the bad case's own one-line error, then the batch's line about it.
+  EXPECT_NE(
+      r.err.find((f.dir / "cases" / "bad" / "case.json").string() + ": unknown key 'icp_marker'"),
+      std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find(f.manifest.string() + ": case 1 (" +
+                       (f.dir / "cases" / "bad" / "case.json").string() + "): bad input (exit 2)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 2) << r.err;
+
+  // Every case good: exit 0.
+  nlohmann::json manifest = nlohmann::json::parse(read_text(f.manifest));
+  manifest["cases"].erase(1);
+  manifest["cases"][0]["out"] = "results2/mm";
+  manifest["cases"][1]["out"] = "results2/m";
+  write_text(f.dir / "good.json", manifest.dump(1));
+  const auto good = run_tool("unset SLURM_ARRAY_TASK_ID && " + kTool + " --batch " +
+                                 (f.dir / "good.json").string() + " --quiet",
+                             f.dir);
+  EXPECT_EQ(good.exit_status, 0) << good.err;
+  EXPECT_EQ(good.out, "") << "--quiet";
+  expect_result(f.dir / "results2" / "mm");
+  expect_result(f.dir / "results2" / "m");
+}
+
+TEST(SinewRegister, BatchTaskRunsOneCase) {
+  const BatchFixture f = batch_fixture("sinew_register_batch_task");
+  const std::string batch = kTool + " --batch " + f.manifest.string();
+  // --task 2: the third case alone, with its own exit status.
+  auto r = run_tool("unset SLURM_ARRAY_TASK_ID && " + batch + " --task 2", f.dir);
+  EXPECT_EQ(r.exit_status, 0) << r.err;
+  expect_result(f.dir / "results" / "m");
+  EXPECT_FALSE(fs::exists(f.dir / "results" / "mm"));
+  EXPECT_NE(r.out.find("1 of 1 case registered, 0 failed"), std::string::npos) << r.out;
+  // SLURM_ARRAY_TASK_ID picks the task when --task is absent: the bad case's status is 2.
+  r = run_tool("SLURM_ARRAY_TASK_ID=1 " + batch, f.dir);
+  EXPECT_EQ(r.exit_status, 2) << r.err;
+  EXPECT_NE(r.err.find("unknown key 'icp_marker'"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(f.dir / "results" / "mm"));
+  EXPECT_FALSE(fs::exists(f.dir / "results" / "bad"));
+  // --task wins over SLURM_ARRAY_TASK_ID.
+  r = run_tool("SLURM_ARRAY_TASK_ID=1 " + batch + " --task 0", f.dir);
+  EXPECT_EQ(r.exit_status, 0) << r.err;
+  expect_result(f.dir / "results" / "mm");
+  // Out of range and malformed task indices are usage errors naming the manifest or variable.
+  r = run_tool("SLURM_ARRAY_TASK_ID=3 " + batch, f.dir);
+  EXPECT_EQ(r.exit_status, 2) << r.err;
+  EXPECT_EQ(r.err, "sinew-register: " + f.manifest.string() +
+                       ": SLURM_ARRAY_TASK_ID = 3 is not a case: the manifest has 3 cases (tasks "
+                       "0-2)\n");
+  r = run_tool("unset SLURM_ARRAY_TASK_ID && " + batch + " --task 7", f.dir);
+  EXPECT_EQ(r.exit_status, 2) << r.err;
+  EXPECT_NE(r.err.find("--task 7 is not a case: the manifest has 3 cases"), std::string::npos)
+      << r.err;
+  r = run_tool("SLURM_ARRAY_TASK_ID=x1 " + batch, f.dir);
+  EXPECT_EQ(r.exit_status, 2) << r.err;
+  EXPECT_EQ(r.err,
+            "sinew-register: SLURM_ARRAY_TASK_ID = 'x1' is not a task index (a non-negative "
+            "integer)\n");
+}
+
+TEST(SinewRegister, BadBatchManifestIsAnInputError) {
+  const auto dir = scratch_dir("sinew_register_batch_bad");
+  const nlohmann::json one = {{"case", "a/case.json"}, {"out", "out/a"}};
+  struct Bad {
+    std::string name, text, expected;
+  };
+  const std::vector<Bad> cases = {
+      {"unknown_key", nlohmann::json{{"cases", {one}}, {"jobs", 2}}.dump(),
+       "batch.json: unknown key 'jobs' (expected one of: cases)"},
+      {"unknown_case_key",
+       nlohmann::json{{"cases", {{{"case", "a.json"}, {"out", "o"}, {"outt", "p"}}}}}.dump(),
+       "batch.json: unknown key 'outt' in cases[0] (expected one of: case, out, truth)"},
+      {"missing_out", nlohmann::json{{"cases", {{{"case", "a.json"}}}}}.dump(),
+       "batch.json: missing required field 'cases[0].out'"},
+      {"empty", nlohmann::json{{"cases", nlohmann::json::array()}}.dump(),
+       "batch.json: cases is empty"},
+      {"same_output",
+       nlohmann::json{{"cases", {one, {{"case", "b/case.json"}, {"out", "out/./a"}}}}}.dump(),
+       "batch.json: cases[1].out = \"out/./a\" is also the output folder of cases[0]"},
+      {"malformed", "{\"cases\": [\n", "batch.json:2:1: invalid JSON"},
+      {"missing", "", "batch.json: cannot open file for reading"},
+  };
+  for (const Bad& c : cases) {
+    SCOPED_TRACE(c.name);
+    const fs::path manifest = dir / c.name / "batch.json";
+    fs::create_directories(manifest.parent_path());
+    if (!c.text.empty()) write_text(manifest, c.text);
+    const auto r = run_tool(kTool + " --batch " + manifest.string(), dir);
+    EXPECT_EQ(r.exit_status, 2) << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(dir / c.name / "out"));
+  }
+  // --batch with --case, and --task without --batch, are usage errors.
+  auto r = run_tool(kTool + " --batch b.json --case c.json", dir);
+  EXPECT_EQ(r.exit_status, 2);
+  EXPECT_NE(r.err.find("--batch takes no --case"), std::string::npos) << r.err;
+  r = run_tool(kTool + " --case c.json --out o --task 1", dir);
+  EXPECT_EQ(r.exit_status, 2);
+  EXPECT_NE(r.err.find("--task applies to --batch only"), std::string::npos) << r.err;
 }
 
 // --- Botsch & Sorkine 2008 bar: fixed and handle regions as attachments under bar.def.

@@ -61,7 +61,7 @@ class MarkerReader {
       set.template_points = r.pairs->template_points;
       set.target_points = r.pairs->target_points;
       set.labels = r.pairs->labels;
-      set.source = file;
+      set.source = set.template_source = file;
       return set;
     }
     if (v.is_object()) {
@@ -82,6 +82,7 @@ class MarkerReader {
       set.target_points = b.points;
       set.labels = a.labels;
       set.source = resolve(case_.case_path, y);
+      set.template_source = resolve(case_.case_path, t);
       return set;
     }
     const std::size_t n = field.array_size();
@@ -101,7 +102,7 @@ class MarkerReader {
       any_label = any_label || !set.labels.back().empty();
     }
     if (!any_label) set.labels.clear();
-    set.source = case_.case_path;
+    set.source = set.template_source = case_.case_path;
     return set;
   }
 
@@ -116,7 +117,7 @@ class MarkerReader {
     Eigen::MatrixXd p(static_cast<Eigen::Index>(n), 3);
     for (std::size_t i = 0; i < n; ++i)
       p.row(static_cast<Eigen::Index>(i)) = parse_xyz(field.at(i)).transpose();
-    *source = case_.case_path + ": " + field.path();
+    *source = case_.case_path;
     return p;
   }
 
@@ -163,7 +164,7 @@ void parse_mesh_options(const JsonCursor& m, offline::TetMesherOptions& o) {
   m.expect_keys({"cell_size_fraction", "facet_distance_fraction", "facet_angle_degrees",
                  "cell_radius_edge_ratio", "odt", "lloyd", "smoothing_iterations", "perturb",
                  "exude", "sliver_bound_degrees", "protect_sharp_features", "feature_angle_degrees",
-                 "random_seed", "max_vertices"});
+                 "random_seed", "max_vertices", "optimisation_time_limit_seconds"});
   auto real = [&](const char* key, double& out) {
     if (m.has(key)) out = m.at(key).finite_number();
   };
@@ -250,7 +251,8 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
 
   MarkerReader markers(c);
-  c.attachments = markers.pairs(root.at("attachments"));
+  // No attachments (absent or empty): an un-attached ("free-flying") object, §3.6.
+  if (root.has("attachments")) c.attachments = markers.pairs(root.at("attachments"));
   if (root.has("landmarks")) c.landmarks = markers.pairs(root.at("landmarks"));
   c.icp_markers.resize(0, 3);
   if (root.has("icp_markers"))

@@ -16,7 +16,8 @@
 ///     "protect_sharp_features": false, "random_seed": 0, "max_vertices": 2000000,
 ///     "optimisation_time_limit_seconds": 0  // caps sliver perturbation/exudation (0: none)
 ///   },
-///   "attachments": PAIRS,           // required: material points fixed to bone etc. (§3.3)
+///   "attachments": PAIRS,           // optional: material points fixed to bone etc. (§3.3);
+///                                   // none: a free object (§3.6), >= 3 landmarks/markers
 ///   "landmarks": PAIRS,             // optional: points with known correspondence
 ///   "icp_markers": POINTS,          // optional: scan points without correspondence (ICP)
 ///   "weights": {                    // optional; in the normalised frame (see below)
@@ -66,8 +67,11 @@ struct PointPairSet {
   Eigen::MatrixXd template_points;  ///< #P by 3
   Eigen::MatrixXd target_points;    ///< #P by 3
   std::vector<std::string> labels;  ///< one per pair (maybe ""), or empty
-  /// Where they came from, for messages: "case.json: attachments" or the file's path.
+  /// Where they came from, for messages: the case file (points given inline) or the marker
+  /// file's path (of the targets, for a {"template": FILE, "target": FILE} pair of lists).
   std::string source;
+  /// As source, for the template points (differs for a pair of lists only).
+  std::string template_source;
   Eigen::Index size() const { return template_points.rows(); }
 };
 

@@ -9,12 +9,15 @@
 //
 //   sinew-register --case case.json --out OUTDIR [--quiet] [--max-iterations N] [--truth FILE]
 //   sinew-register --make-demo-case DIR
+//   sinew-register --batch manifest.json [--task N] [--quiet] [--max-iterations N]
 //
 // --truth FILE (a surface in the case's units) reports the distances between the result surface
 // and FILE (result vertices to FILE's surface and FILE's vertices to the result surface: mean and
 // max), on the terminal and in report.json's "truth". --make-demo-case writes a case with a known
 // answer (tools/register/demo_case.hpp: a capsule stretched and bent, ICP markers on the truth,
-// DIR/truth_surface.obj) and exits; scripts/demo registers it.
+// DIR/truth_surface.obj) and exits; scripts/demo registers it. --batch runs the cases of a
+// manifest, each in a process of its own, or only case N (--task N or SLURM_ARRAY_TASK_ID, for a
+// Slurm job array): tools/register/batch.hpp.
 //
 // The case file is described in tools/register/case_file.hpp. The geometry is normalised (bounding-
 // box centre at the origin, diagonal 1, unit material) so the defaults fit millimetres and metres;
@@ -28,6 +31,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -45,9 +49,12 @@
 #include "offline/plastic_strain.hpp"
 #include "offline/surface_closest_point.hpp"
 #include "tools/io/json_file.hpp"
+#include "tools/register/batch.hpp"
 #include "tools/register/case_file.hpp"
 #include "tools/register/demo_case.hpp"
+#include "tools/register/marker_checks.hpp"
 #include "tools/register/surface_distance.hpp"
+#include "tools/register/template_surface.hpp"
 
 namespace {
 
@@ -215,6 +222,8 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
     frame.scale = (hi - lo).norm();
     if (!(frame.scale > 0) || !std::isfinite(frame.scale))
       throw tools::InputError(c.template_path + ": the template has no extent");
+    // Before the slow meshing: marker points in another frame or unit.
+    tools::check_markers_near_template(c, lo.transpose(), hi.transpose(), u);
   }
   inputs["bounding_box_diagonal"] = frame.scale;
   inputs["attachments"] = c.attachments.size();
@@ -226,6 +235,17 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
   log.line("markers: {} attachments, {} landmarks, {} ICP markers; template diagonal {:.4g}{}",
            c.attachments.size(), c.landmarks.size(), c.icp_markers.rows(), frame.scale, u);
   phases["reading"] = seconds_since(start);
+
+  // No attachments: a free object (§3.6); checked before the (slow) meshing.
+  const bool free_object = c.attachments.size() == 0;
+  if (free_object && c.landmarks.size() < 3 && c.icp_markers.rows() < 3) {
+    throw tools::InputError(
+        case_path +
+        ": no attachments, so the template is a free object (seed 003 §3.6), which "
+        "needs at least 3 landmarks or 3 ICP markers to fix its pose; got " +
+        std::to_string(c.landmarks.size()) + " landmarks and " +
+        std::to_string(c.icp_markers.rows()) + " ICP markers");
+  }
 
   // ---- meshing (in the normalised frame)
   start = Clock::now();
@@ -259,7 +279,7 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
   double worst = 0.0;
   offline::RegistrationConstraints constraints;
   const double stiffness = c.weights.attachment_stiffness;
-  {
+  if (!free_object) {
     const auto points = embed(*locator, frame.to_frame(c.attachments.template_points),
                               "attachments", c.attachments.source, frame.scale, u, &worst);
     const Eigen::MatrixXd targets = frame.to_frame(c.attachments.target_points);
@@ -313,9 +333,18 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
       for (int k = 0; k < 3; ++k)
         surface_triangles(f, k) = index[static_cast<std::size_t>(boundary->triangles()(f, k))];
   }
+  // ICP closest points: on the template surface itself when one was given (the surface that is
+  // written; tools/register/template_surface.hpp), else on the tet mesh's boundary.
   std::optional<offline::SurfaceClosestPoint> surface_query;
-  std::unique_ptr<offline::BoundaryClosestPoint> closest;
-  if (!constraints.icp_markers.empty()) {
+  std::unique_ptr<offline::ClosestSurfacePoint> closest;
+  if (!constraints.icp_markers.empty() && !c.template_is_tet_mesh) {
+    const Eigen::MatrixXd rest_rows = rest;  // #V by 3 → vertex-major dofs
+    Eigen::VectorXd rest_dofs(3 * rest_rows.rows());
+    for (Eigen::Index v = 0; v < rest_rows.rows(); ++v)
+      rest_dofs.segment<3>(3 * v) = rest_rows.row(v).transpose();
+    closest = std::make_unique<tools::TemplateSurfaceClosestPoint>(
+        tets, rest_dofs, *locator, surface_triangles, surface_points);
+  } else if (!constraints.icp_markers.empty()) {
     surface_query = offline::SurfaceClosestPoint::create(rest.rows(), tets, &boundary_check);
     if (!surface_query) throw tools::InputError(c.template_path + ": " + boundary_check.message());
     closest = std::make_unique<offline::BoundaryClosestPoint>(*surface_query);
@@ -366,8 +395,12 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
         it.marker_error_mean * frame.scale, it.marker_error_max * frame.scale, u,
         it.equilibrium_solves, it.seconds);
   };
+  log.line("mode: {}", free_object ? "free object (no attachments: rigid frame fitted, §3.6)"
+                                   : "attached object");
   const offline::RegistrationResult result =
-      offline::register_attached(*energy, constraints, closest.get(), options, progress);
+      free_object
+          ? offline::register_free(*energy, constraints, closest.get(), options, progress)
+          : offline::register_attached(*energy, constraints, closest.get(), options, progress);
   const offline::GaussNewtonSummary& summary = result.summary;
   phases["registration"] = seconds_since(start);
   log.line("registration: {} ({}), final marker error mean {:.4g} max {:.4g}{}, {:.1f} s",
@@ -382,6 +415,7 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
   report["case"] = case_path;
   report["length_unit"] = unit.empty() ? "template units" : unit;
   report["inputs"] = inputs;
+  report["mode"] = free_object ? "free" : "attached";
   report["options"] = {{"alpha", options.alpha},
                        {"beta", options.beta},
                        {"attachment_stiffness", stiffness},
@@ -488,6 +522,17 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
   return summary.usable() ? 0 : 1;
 }
 
+// One case with its errors reported: the exit status of the tool.
+int run_reporting_errors(const std::string& case_path, const std::string& out_dir, bool quiet,
+                         std::optional<int> max_iterations, const std::string& truth_path) {
+  try {
+    return run(case_path, out_dir, quiet, max_iterations, truth_path);
+  } catch (const std::exception& e) {  // tools::InputError and anything unexpected alike
+    std::cerr << "sinew-register: " << e.what() << "\n";
+    return 2;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -495,7 +540,8 @@ int main(int argc, char** argv) {
   std::string case_path, out_dir;
   bool quiet = false;
   std::optional<int> max_iterations;
-  std::string truth_path, demo_dir;
+  std::string truth_path, demo_dir, batch_path;
+  std::optional<long> task;
   app.add_option("--case", case_path, "registration case (JSON)");
   app.add_option("--out", out_dir, "output folder (created)");
   app.add_option("--truth", truth_path,
@@ -504,6 +550,13 @@ int main(int argc, char** argv) {
   app.add_option("--make-demo-case", demo_dir,
                  "write a case with a known answer (template.obj, markers.csv, attachments.json, "
                  "truth_surface.obj, case.json) into this folder and exit");
+  app.add_option("--batch", batch_path,
+                 "run the cases of a manifest (JSON: {\"cases\": [{\"case\": FILE, \"out\": "
+                 "FOLDER}, ...]}), each into its own folder; see tools/register/batch.hpp");
+  app.add_option("--task", task,
+                 "with --batch: run case N of the manifest alone (0-based; default: "
+                 "SLURM_ARRAY_TASK_ID when set, else every case)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--quiet", quiet, "print nothing but errors");
   app.add_option("--max-iterations", max_iterations,
                  "Gauss-Newton iterations per stage (overrides stop.max_iterations)")
@@ -514,8 +567,8 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   if (!demo_dir.empty()) {
-    if (!case_path.empty() || !out_dir.empty() || !truth_path.empty()) {
-      std::cerr << "sinew-register: --make-demo-case takes no --case, --out or --truth\n";
+    if (!case_path.empty() || !out_dir.empty() || !truth_path.empty() || !batch_path.empty()) {
+      std::cerr << "sinew-register: --make-demo-case takes no --case, --out, --truth or --batch\n";
       return 2;
     }
     try {
@@ -537,18 +590,36 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  if (!batch_path.empty()) {
+    if (!case_path.empty() || !out_dir.empty() || !truth_path.empty()) {
+      std::cerr << "sinew-register: --batch takes no --case, --out or --truth (the manifest names "
+                   "them)\n";
+      return 2;
+    }
+    try {
+      const sinew::tools::BatchManifest manifest = sinew::tools::read_batch_manifest(batch_path);
+      const auto selected =
+          sinew::tools::select_batch_task(manifest, task, std::getenv("SLURM_ARRAY_TASK_ID"));
+      return sinew::tools::run_batch(
+          manifest, selected,
+          [&](const sinew::tools::BatchCase& c) {
+            return run_reporting_errors(c.case_path, c.out_dir, quiet, max_iterations,
+                                        c.truth_path);
+          },
+          quiet);
+    } catch (const std::exception& e) {
+      std::cerr << "sinew-register: " << e.what() << "\n";
+      return 2;
+    }
+  }
+  if (task) {
+    std::cerr << "sinew-register: --task applies to --batch only\n";
+    return 2;
+  }
   if (case_path.empty() || out_dir.empty()) {
     std::cerr << "sinew-register: --case and --out are required (or --make-demo-case DIR); see "
                  "--help\n";
     return 2;
   }
-  try {
-    return run(case_path, out_dir, quiet, max_iterations, truth_path);
-  } catch (const sinew::tools::InputError& e) {
-    std::cerr << "sinew-register: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "sinew-register: " << e.what() << "\n";
-    return 2;
-  }
+  return run_reporting_errors(case_path, out_dir, quiet, max_iterations, truth_path);
 }

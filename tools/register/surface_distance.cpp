@@ -66,11 +66,12 @@ SurfaceDistance::SurfaceDistance(const offline::io::SurfaceMesh& surface) : surf
   }
 }
 
-double SurfaceDistance::distance(const Eigen::Vector3d& p) const {
+SurfaceDistance::Closest SurfaceDistance::closest(const Eigen::Vector3d& p) const {
   Eigen::Vector3i c;
   for (int i = 0; i < 3; ++i)
     c[i] = std::clamp(static_cast<int>(std::floor((p[i] - origin_[i]) / cell_)), 0, dims_[i] - 1);
   double best = std::numeric_limits<double>::infinity();
+  Closest result;
   const int max_ring = dims_.maxCoeff();
   // Every point of a cell outside ring k of p's (clamped) cell is at least k cells from p: for p
   // outside the grid, clamping onto the grid's box only shortens distances to points inside it.
@@ -90,14 +91,18 @@ double SurfaceDistance::distance(const Eigen::Vector3d& p) const {
                 p, surface_.vertices.row(surface_.triangles(f, 0)).transpose(),
                 surface_.vertices.row(surface_.triangles(f, 1)).transpose(),
                 surface_.vertices.row(surface_.triangles(f, 2)).transpose());
-            best = std::min(best, (q.point - p).norm());
+            const double d = (q.point - p).norm();
+            if (d < best) {
+              best = d;
+              result = Closest{f, q.barycentric, q.point, d};
+            }
           }
         }
       }
     }
     if (best <= k * cell_) break;
   }
-  return best;
+  return result;
 }
 
 SurfaceDistanceStats vertex_to_surface_distances(const offline::io::SurfaceMesh& from,

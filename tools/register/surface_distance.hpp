@@ -20,7 +20,17 @@ class SurfaceDistance {
   explicit SurfaceDistance(const offline::io::SurfaceMesh& surface);
 
   /// Distance from p to the nearest point of the surface, in the surface's units.
-  double distance(const Eigen::Vector3d& p) const;
+  double distance(const Eigen::Vector3d& p) const { return closest(p).distance; }
+
+  /// The nearest point of the surface to p: its triangle, barycentric coordinates (weights of
+  /// the triangle's corners 0, 1, 2), position and distance.
+  struct Closest {
+    Eigen::Index triangle = 0;
+    Eigen::Vector3d barycentric = Eigen::Vector3d::Constant(1.0 / 3.0);
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();
+    double distance = 0.0;
+  };
+  Closest closest(const Eigen::Vector3d& p) const;
 
  private:
   Eigen::Index cell_index(const Eigen::Vector3i& c) const {

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <map>
 #include <utility>
@@ -376,6 +377,15 @@ TEST(TetMesher, RejectsOtherInvalidSurfaces) {
     const auto r = make_tet_mesh(s.V, s.F);
     EXPECT_EQ(r.summary.status, TetMesherStatus::kSelfIntersecting);
     EXPECT_NE(r.summary.message.find("intersects itself"), std::string::npos);
+    // The named pair is one face of each sphere (faces of one sphere never cross each other).
+    long f = -1, g = -1;
+    ASSERT_EQ(std::sscanf(r.summary.message.c_str(),
+                          "the surface intersects itself: faces %ld and %ld cross", &f, &g),
+              2)
+        << r.summary.message;
+    EXPECT_LT(f, sphere.F.rows()) << r.summary.message;
+    EXPECT_GE(g, sphere.F.rows()) << r.summary.message;
+    EXPECT_LT(g, 2 * sphere.F.rows()) << r.summary.message;
   }
 }
 
