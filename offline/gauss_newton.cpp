@@ -569,7 +569,9 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
                                     const RegistrationConstraints& constraints,
                                     ClosestSurfacePoint* closest_point,
                                     const GaussNewtonOptions& options,
-                                    const GaussNewtonProgress& progress, bool free) {
+                                    const GaussNewtonProgress& progress,
+                                    const GaussNewtonCheckpointCallback& checkpoint,
+                                    const GaussNewtonCheckpoint* resume, bool free) {
   const Clock::time_point run_start = Clock::now();
   RegistrationResult result;
   result.s = identity_plastic_strains(energy_in.num_tets());
@@ -602,6 +604,26 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     return fail(GaussNewtonTermination::kInvalidInput,
                 "ICP markers given without a closest-point "
                 "structure");
+  }
+  if (resume != nullptr) {
+    if (resume->free_object != free) {
+      return fail(GaussNewtonTermination::kInvalidInput,
+                  std::string("checkpoint: written by ") +
+                      (resume->free_object ? "register_free" : "register_attached") +
+                      ", resumed by " + (free ? "register_free" : "register_attached"));
+    }
+    if (resume->s.size() != 6 * energy_in.num_tets() ||
+        resume->x.size() != 3 * energy_in.num_vertices()) {
+      return fail(GaussNewtonTermination::kInvalidInput,
+                  "checkpoint: s has " + std::to_string(resume->s.size()) + " and x " +
+                      std::to_string(resume->x.size()) + " entries, the mesh needs " +
+                      std::to_string(6 * energy_in.num_tets()) + " and " +
+                      std::to_string(3 * energy_in.num_vertices()));
+    }
+    if (!resume->s.allFinite() || !resume->x.allFinite() || resume->next_iteration < 1) {
+      return fail(GaussNewtonTermination::kInvalidInput,
+                  "checkpoint: non-finite state or next_iteration < 1");
+    }
   }
   // Exact stiffness in full storage for the Jacobian (eq. 10).
   PlasticElasticEnergyOptions exact_options;
@@ -640,7 +662,52 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     const Eigen::MatrixXd rest = rest_matrix(energy_in);
     r.set_diagonal((rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm());
   }
-  if (free) {
+  std::vector<RegistrationStage> stages;
+  if (!free) stages.push_back(RegistrationStage::kAttachments);
+  if (!constraints.landmarks.empty()) stages.push_back(RegistrationStage::kLandmarks);
+  if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
+  const RegistrationStage final_stage = stages.back();
+  // The stage to start with (stages.size(): all done) and its first iteration.
+  std::size_t first_stage = 0;
+  int first_iteration = 1;
+  double seconds_before = 0.0;  // a resumed run's earlier registration time
+  if (resume != nullptr) {
+    first_stage = stages.size();
+    if (resume->next_stage) {
+      const auto at = std::find(stages.begin(), stages.end(), *resume->next_stage);
+      if (at == stages.end()) {
+        return fail(GaussNewtonTermination::kInvalidInput,
+                    std::string("checkpoint: stage '") + to_string(*resume->next_stage) +
+                        "' is not a stage of this registration");
+      }
+      first_stage = static_cast<std::size_t>(at - stages.begin());
+      first_iteration = resume->next_iteration;
+    }
+    r.s = resume->s;
+    r.x = resume->x;
+    r.equilibrium_solves = resume->equilibrium_solves;
+    summary.iterations = resume->iterations;
+    summary.initial_objective = resume->initial_objective;
+    seconds_before = resume->seconds;
+  }
+  // Hands the state to continue from to the caller (checkpoints).
+  const auto save = [&](std::optional<RegistrationStage> next_stage, int next_iteration,
+                        GaussNewtonTermination last_termination) {
+    if (!checkpoint) return;
+    GaussNewtonCheckpoint saved;
+    saved.free_object = free;
+    saved.next_stage = next_stage;
+    saved.next_iteration = next_iteration;
+    saved.termination = last_termination;
+    saved.s = r.s;
+    saved.x = r.x;
+    saved.iterations = summary.iterations;
+    saved.initial_objective = summary.initial_objective;
+    saved.equilibrium_solves = r.equilibrium_solves;
+    saved.seconds = seconds_before + seconds_since(run_start);
+    checkpoint(saved);
+  };
+  if (free && resume == nullptr) {
     // §3.6: start from a rigid alignment of the template to the scan (landmark correspondences,
     // or centroids and ICP), so that any pose of the scan frame works.
     if (constraints.landmarks.size() >= 3) {
@@ -664,7 +731,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
   // twisted bar, a bone in another pose) the direct solve may fail: then it is retried allowing
   // inverted tets on the way, directly and, failing that, with the targets moved from where the
   // template has its attachment points to where they belong in first_equilibrium_steps equal steps.
-  if (!free && !r.solve_equilibrium(r.s, r.x)) {
+  if (resume == nullptr && !free && !r.solve_equilibrium(r.s, r.x)) {
     const Eigen::VectorXd s0 = r.s;
     r.x = energy_in.rest_dofs();
     ++r.equilibrium_solves;
@@ -677,7 +744,13 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
       for (std::size_t i = 0; i < list.size(); ++i) {
         const Eigen::Vector3d start =
             embedded_position(energy_in.tets(), list[i].point, energy_in.rest_dofs());
-        springs->set_target(static_cast<Eigen::Index>(i), start + t * (list[i].target - start));
+        // The last step sets the targets exactly (start + 1·(target − start) may differ from
+        // target in the last bit), so that the springs hold no trace of the continuation and a
+        // resumed run, which skips it, solves the same equilibria.
+        springs->set_target(static_cast<Eigen::Index>(i),
+                            step_index == options.first_equilibrium_steps
+                                ? list[i].target
+                                : Eigen::Vector3d(start + t * (list[i].target - start)));
       }
       ++r.equilibrium_solves;
       const bool step_reached = first_equilibrium->solve(s0, r.x).converged();
@@ -692,19 +765,14 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     }
   }
 
-  std::vector<RegistrationStage> stages;
-  if (!free) stages.push_back(RegistrationStage::kAttachments);
-  if (!constraints.landmarks.empty()) stages.push_back(RegistrationStage::kLandmarks);
-  if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
-  const RegistrationStage final_stage = stages.back();
-  {
+  if (resume == nullptr) {
     auto terms = r.objective_constraints(final_stage, r.x, &error);
     if (!terms) return fail(GaussNewtonTermination::kInvalidInput, error);
     summary.initial_objective = r.objective(r.s, r.x, *terms);
   }
 
   // §3.4 "Initial guess": one constant s for all tets (NLopt BOBYQA over its 6 entries).
-  if (options.initial_constant_fit) {
+  if (options.initial_constant_fit && resume == nullptr) {
     const Clock::time_point start = Clock::now();
     const int solves_before = r.equilibrium_solves;
     ConstantFitData fit{&r,        RegistrationStage::kInitialFit, r.x,
@@ -753,13 +821,18 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     record.seconds = seconds_since(start);
     summary.iterations.push_back(record);
     if (progress) progress(record);
+    save(stages.front(), 1, GaussNewtonTermination::kMaxIterations);
   }
 
-  GaussNewtonTermination termination = GaussNewtonTermination::kMaxIterations;
+  GaussNewtonTermination termination = resume != nullptr && !resume->next_stage
+                                           ? resume->termination
+                                           : GaussNewtonTermination::kMaxIterations;
   Eigen::VectorXd step;
-  for (const RegistrationStage stage : stages) {
+  for (std::size_t stage_index = first_stage; stage_index < stages.size(); ++stage_index) {
+    const RegistrationStage stage = stages[stage_index];
     termination = GaussNewtonTermination::kMaxIterations;
-    for (int iteration = 1; iteration <= options.max_iterations_per_stage; ++iteration) {
+    for (int iteration = stage_index == first_stage ? first_iteration : 1;
+         iteration <= options.max_iterations_per_stage; ++iteration) {
       const Clock::time_point start = Clock::now();
       const int solves_before = r.equilibrium_solves;
       GaussNewtonIteration record;
@@ -820,6 +893,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
       }
       record.line_search_seconds = seconds_since(search_start);
       record.equilibrium_solves = r.equilibrium_solves - solves_before;
+      bool stage_done = false;
       if (best_eta <= 0.0) {
         record.objective = before;
         std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
@@ -827,30 +901,38 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         summary.iterations.push_back(record);
         if (progress) progress(record);
         termination = GaussNewtonTermination::kLineSearchFailed;
-        break;
+        stage_done = true;
+      } else {
+        r.s += best_eta * step;
+        r.x = best_x;
+        if (free) r.rigid_update(stage, r.x, rigid_rounds(stage));
+        record.step = best_eta;
+        record.objective = best_value;
+        std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
+        record.seconds = seconds_since(start);
+        summary.iterations.push_back(record);
+        if (progress) progress(record);
+        if (stage == RegistrationStage::kIcpMarkers && options.max_marker_error > 0.0 &&
+            record.marker_error_max <= options.max_marker_error) {
+          termination = GaussNewtonTermination::kMarkerTolerance;
+          stage_done = true;
+        } else if (best_eta < options.min_step) {
+          termination = GaussNewtonTermination::kSmallStep;
+          stage_done = true;
+        } else if (before - best_value <= options.relative_decrease_tolerance * before) {
+          termination = GaussNewtonTermination::kSmallDecrease;
+          stage_done = true;
+        }
       }
-      r.s += best_eta * step;
-      r.x = best_x;
-      if (free) r.rigid_update(stage, r.x, rigid_rounds(stage));
-      record.step = best_eta;
-      record.objective = best_value;
-      std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
-      record.seconds = seconds_since(start);
-      summary.iterations.push_back(record);
-      if (progress) progress(record);
-      if (stage == RegistrationStage::kIcpMarkers && options.max_marker_error > 0.0 &&
-          record.marker_error_max <= options.max_marker_error) {
-        termination = GaussNewtonTermination::kMarkerTolerance;
-        break;
+      // The checkpoint names what runs next: this stage's next iteration, or the next stage.
+      if (stage_done || iteration == options.max_iterations_per_stage) {
+        save(
+            stage_index + 1 < stages.size() ? std::optional(stages[stage_index + 1]) : std::nullopt,
+            1, termination);
+      } else {
+        save(stage, iteration + 1, termination);
       }
-      if (best_eta < options.min_step) {
-        termination = GaussNewtonTermination::kSmallStep;
-        break;
-      }
-      if (before - best_value <= options.relative_decrease_tolerance * before) {
-        termination = GaussNewtonTermination::kSmallDecrease;
-        break;
-      }
+      if (stage_done) break;
     }
     if (termination == GaussNewtonTermination::kLinearSolveFailed) break;
   }
@@ -864,7 +946,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
   std::tie(summary.marker_error_mean, summary.marker_error_max) = r.marker_errors(final_stage, r.x);
   summary.termination = termination;
   summary.equilibrium_solves = r.equilibrium_solves;
-  summary.seconds = seconds_since(run_start);
+  summary.seconds = seconds_before + seconds_since(run_start);
   return result;
 }
 
@@ -874,16 +956,22 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy,
                                      const RegistrationConstraints& constraints,
                                      ClosestSurfacePoint* closest_point,
                                      const GaussNewtonOptions& options,
-                                     const GaussNewtonProgress& progress) {
-  return run_registration(energy, constraints, closest_point, options, progress, false);
+                                     const GaussNewtonProgress& progress,
+                                     const GaussNewtonCheckpointCallback& checkpoint,
+                                     const GaussNewtonCheckpoint* resume) {
+  return run_registration(energy, constraints, closest_point, options, progress, checkpoint, resume,
+                          false);
 }
 
 RegistrationResult register_free(const PlasticElasticEnergy& energy,
                                  const RegistrationConstraints& constraints,
                                  ClosestSurfacePoint* closest_point,
                                  const GaussNewtonOptions& options,
-                                 const GaussNewtonProgress& progress) {
-  return run_registration(energy, constraints, closest_point, options, progress, true);
+                                 const GaussNewtonProgress& progress,
+                                 const GaussNewtonCheckpointCallback& checkpoint,
+                                 const GaussNewtonCheckpoint* resume) {
+  return run_registration(energy, constraints, closest_point, options, progress, checkpoint, resume,
+                          true);
 }
 
 }  // namespace sinew::offline

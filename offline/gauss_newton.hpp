@@ -202,13 +202,45 @@ struct RegistrationResult {
 /// Called after each iteration (and after the initial fit) for progress output.
 using GaussNewtonProgress = std::function<void(const GaussNewtonIteration&)>;
 
+/// Everything a registration needs to continue exactly where it stopped. After the initial fit
+/// the loop carries no state but (s, x) and its position in the stages: every equilibrium is
+/// warm-started from x, ICP closest points and a free object's rigid frame are found at x, and
+/// the solvers' factorisations are rebuilt per iteration. So a run resumed from a checkpoint
+/// does the same arithmetic as one that never stopped (tools/register writes one to
+/// OUTDIR/checkpoint.sinew after every iteration; `sinew-register --resume`).
+struct GaussNewtonCheckpoint {
+  bool free_object = false;  ///< written by register_free (true) or register_attached (false)
+  /// Where to continue: the stage and its iteration (from 1) to run next; std::nullopt when
+  /// every stage is done (only the summary is left to compute).
+  std::optional<RegistrationStage> next_stage;
+  int next_iteration = 1;
+  /// The last finished stage's termination: the run's when next_stage is empty.
+  GaussNewtonTermination termination = GaussNewtonTermination::kMaxIterations;
+  Eigen::VectorXd s;                             ///< 6m plastic state
+  Eigen::VectorXd x;                             ///< 3n equilibrium positions
+  std::vector<GaussNewtonIteration> iterations;  ///< so far, the initial fit's included
+  double initial_objective = 0.0;                ///< GaussNewtonSummary::initial_objective
+  int equilibrium_solves = 0;                    ///< so far
+  double seconds = 0.0;                          ///< registration time so far
+};
+
+/// Called after the initial fit and after each Gauss–Newton iteration (once its stage's
+/// termination tests have run) with the state to resume from; for writing checkpoints.
+using GaussNewtonCheckpointCallback = std::function<void(const GaussNewtonCheckpoint&)>;
+
 /// Runs the staged registration from the template (s = identity, x = rest positions).
-/// closest_point is needed when there are ICP markers (nullptr otherwise).
+/// closest_point is needed when there are ICP markers (nullptr otherwise). With resume (a
+/// checkpoint of a run with the same energy, constraints and options), the first equilibrium, the
+/// initial fit and the finished iterations are skipped and the run continues from resume's (s,
+/// x); the result equals the uninterrupted run's. A checkpoint that does not fit (sizes, mode,
+/// stage) gives kInvalidInput.
 RegistrationResult register_attached(const PlasticElasticEnergy& energy,
                                      const RegistrationConstraints& constraints,
                                      ClosestSurfacePoint* closest_point,
                                      const GaussNewtonOptions& options = {},
-                                     const GaussNewtonProgress& progress = {});
+                                     const GaussNewtonProgress& progress = {},
+                                     const GaussNewtonCheckpointCallback& checkpoint = {},
+                                     const GaussNewtonCheckpoint* resume = nullptr);
 
 /// Un-attached ("free-flying") objects, §3.6: no attachments, only landmarks and/or ICP markers
 /// (at least 3). The template is first aligned rigidly (landmark correspondences, else centroids
@@ -218,11 +250,14 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy,
 /// and after every accepted step (R, t) is re-fitted to the markers in closed form (Kabsch, with
 /// closest points re-found for ICP markers) — the block-coordinate descent of §3.6. Stages
 /// landmarks → ICP markers. Options as for register_attached (beta unused).
+/// checkpoint and resume as for register_attached.
 RegistrationResult register_free(const PlasticElasticEnergy& energy,
                                  const RegistrationConstraints& constraints,
                                  ClosestSurfacePoint* closest_point,
                                  const GaussNewtonOptions& options = {},
-                                 const GaussNewtonProgress& progress = {});
+                                 const GaussNewtonProgress& progress = {},
+                                 const GaussNewtonCheckpointCallback& checkpoint = {},
+                                 const GaussNewtonCheckpoint* resume = nullptr);
 
 /// The rows of the Gauss–Newton system for objective terms at (s, x): Z = −[√c_k A_k]·K⁻¹·∂f/∂s
 /// (eq. 12; r x 6m, r = 3·terms.size()), returned TRANSPOSED as Zt (6m x r, the layout the

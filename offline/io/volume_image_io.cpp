@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <sstream>
@@ -225,6 +226,58 @@ VolumeImageReadResult read_volume_image(const std::string& path) {
     }
     return result;
   });
+}
+
+bool write_nifti(const std::string& path, const VolumeImage& image, std::string* error) {
+  auto fail_write = [&](const std::string& message) {
+    if (error != nullptr) *error = path + ": " + message;
+    return false;
+  };
+  if (image.values.size() != static_cast<std::size_t>(image.size.prod())) {
+    return fail_write("the number of values does not match the image size");
+  }
+  std::vector<unsigned char> header(352, 0);
+  auto put16 = [&](std::size_t at, std::int16_t v) { std::memcpy(header.data() + at, &v, 2); };
+  auto put32 = [&](std::size_t at, std::int32_t v) { std::memcpy(header.data() + at, &v, 4); };
+  auto putf = [&](std::size_t at, float v) { std::memcpy(header.data() + at, &v, 4); };
+  put32(0, 348);
+  const std::int16_t dim[8] = {3,
+                               static_cast<std::int16_t>(image.size.x()),
+                               static_cast<std::int16_t>(image.size.y()),
+                               static_cast<std::int16_t>(image.size.z()),
+                               1,
+                               1,
+                               1,
+                               1};
+  for (int d = 0; d < 8; ++d) put16(40 + 2 * static_cast<std::size_t>(d), dim[d]);
+  put16(70, 16);  // float32
+  put16(72, 32);
+  const Eigen::Vector3d spacing = image.spacing();
+  putf(76, 1.0f);
+  for (int d = 0; d < 3; ++d)
+    putf(80 + 4 * static_cast<std::size_t>(d), static_cast<float>(spacing[d]));
+  putf(108, 352.0f);
+  putf(112, 1.0f);
+  put16(254, 1);  // sform_code: scanner
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c)
+      putf(280 + 16 * static_cast<std::size_t>(r) + 4 * static_cast<std::size_t>(c),
+           static_cast<float>(image.index_to_world(r, c)));
+  std::memcpy(header.data() + 344, "n+1", 4);
+  const std::string tmp = path + ".tmp";
+  const bool gzip = ends_with(path, ".gz");
+  gzFile file = gzopen(tmp.c_str(), gzip ? "wb6" : "wbT");
+  if (file == nullptr) return fail_write("cannot open for writing");
+  const auto bytes = static_cast<unsigned>(image.values.size() * sizeof(float));
+  const bool ok = gzwrite(file, header.data(), 352) == 352 &&
+                  gzwrite(file, image.values.data(), bytes) == static_cast<int>(bytes);
+  if (gzclose(file) != Z_OK || !ok) {
+    std::remove(tmp.c_str());
+    return fail_write("write failed");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return fail_write("cannot rename the temporary file");
+  return true;
 }
 
 }  // namespace sinew::offline::io

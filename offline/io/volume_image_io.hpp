@@ -45,4 +45,8 @@ struct VolumeImageReadResult {
 /// Reads a NIfTI-1 or INRIA image, chosen by the file name (.nii, .nii.gz, .inr, .inr.gz).
 VolumeImageReadResult read_volume_image(const std::string& path);
 
+/// Writes a NIfTI-1 single file (.nii, or gzip-compressed .nii.gz), float32 voxels, the transform
+/// as sform (and qform_code 0). Written to a temporary name and renamed (atomic). False with error.
+bool write_nifti(const std::string& path, const VolumeImage& image, std::string* error = nullptr);
+
 }  // namespace sinew::offline::io

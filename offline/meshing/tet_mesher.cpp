@@ -2,6 +2,9 @@
 
 // CGAL is confined to this translation unit (and surface_closest_point.cpp).
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/ImageIO.h>
+#include <CGAL/Image_3.h>
+#include <CGAL/Labeled_mesh_domain_3.h>
 #include <CGAL/Mesh_complex_3_in_triangulation_3.h>
 #include <CGAL/Mesh_criteria_3.h>
 #include <CGAL/Mesh_optimization_return_code.h>
@@ -22,9 +25,12 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <exception>
 #include <map>
+#include <optional>
 #include <sstream>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -309,6 +315,11 @@ using Triangulation =
 using Complex = CGAL::Mesh_complex_3_in_triangulation_3<Triangulation, MeshDomain::Corner_index,
                                                         MeshDomain::Curve_index>;
 using Criteria = CGAL::Mesh_criteria_3<Triangulation>;
+// Scalar images (a smoothed label mask): the region where the trilinear interpolation > iso.
+using ImageDomain = CGAL::Labeled_mesh_domain_3<Kernel>;
+using ImageTriangulation =
+    CGAL::Mesh_triangulation_3<ImageDomain, CGAL::Default, CGAL::Sequential_tag>::type;
+using ImageComplex = CGAL::Mesh_complex_3_in_triangulation_3<ImageTriangulation>;
 
 /// Surface_mesh of the referenced vertices (renumbered) and the faces. False if CGAL refuses a
 /// face (non-manifold configuration missed by the checks).
@@ -331,8 +342,9 @@ bool build_surface_mesh(const Eigen::Ref<const Eigen::MatrixXd>& V,
 }
 
 /// Cells of the complex as a right-handed tet mesh over the vertices they use (first-use order).
-TetMesh extract_tets(const Complex& c3t3, int* flipped) {
-  std::map<Triangulation::Vertex_handle, int> index;
+template <class C3T3>
+TetMesh extract_tets(const C3T3& c3t3, int* flipped) {
+  std::map<typename C3T3::Triangulation::Vertex_handle, int> index;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::array<int, 4>> tets;
   tets.reserve(c3t3.number_of_cells_in_complex());
@@ -369,6 +381,89 @@ TetMesh extract_tets(const Complex& c3t3, int* flipped) {
       mesh.tets(static_cast<Eigen::Index>(t), a) = tet[static_cast<std::size_t>(a)];
   }
   return mesh;
+}
+
+/// CGAL Mesh_3 on a domain: refinement with the size criteria of options (relative to diagonal),
+/// then ODT / Lloyd / perturbation / exudation as asked, and the cells as a right-handed tet mesh
+/// into result. A failure status and message, or std::nullopt.
+template <class C3T3, class Domain>
+std::optional<std::pair<TetMesherStatus, std::string>> refine_and_optimise(
+    const Domain& domain, bool features, double diagonal, const TetMesherOptions& options,
+    TetMesherResult& result, Clock::time_point meshing_start) {
+  TetMesherSummary& summary = result.summary;
+  namespace p = CGAL::parameters;
+  const double cell_size = options.cell_size_fraction * diagonal;
+  const typename CGAL::Mesh_criteria_3<typename C3T3::Triangulation> criteria(
+      p::edge_size = cell_size, p::facet_angle = options.facet_angle_degrees,
+      p::facet_size = cell_size, p::facet_distance = options.facet_distance_fraction * diagonal,
+      p::cell_radius_edge_ratio = options.cell_radius_edge_ratio, p::cell_size = cell_size);
+
+  // Refinement, then each optimisation phase on its own (timed, return code read). Time limits
+  // are explicit: make_mesh_3's default for perturbation and exudation (the refinement time)
+  // would make the output depend on the machine's load.
+  CGAL::Mesh_error_code error_code = CGAL::CGAL_MESH_3_NO_ERROR;
+  auto phase_start = Clock::now();
+  C3T3 c3t3;
+  if constexpr (std::is_same_v<Domain, MeshDomain>) {
+    c3t3 = CGAL::make_mesh_3<C3T3>(
+        domain, criteria, features ? p::features(domain) : p::no_features(), p::no_odt(),
+        p::no_lloyd(), p::no_perturb(), p::no_exude(),
+        p::mesh_3_options(
+            p::maximal_number_of_vertices = static_cast<std::size_t>(options.max_vertices),
+            p::pointer_to_error_code = &error_code));
+  } else {
+    c3t3 = CGAL::make_mesh_3<C3T3>(
+        domain, criteria, p::no_features(), p::no_odt(), p::no_lloyd(), p::no_perturb(),
+        p::no_exude(),
+        p::mesh_3_options(
+            p::maximal_number_of_vertices = static_cast<std::size_t>(options.max_vertices),
+            p::pointer_to_error_code = &error_code));
+  }
+  summary.refine_seconds = seconds_since(phase_start);
+  if (error_code == CGAL::CGAL_MESH_3_MAXIMAL_NUMBER_OF_VERTICES_REACHED) {
+    summary.meshing_seconds = seconds_since(meshing_start);
+    std::ostringstream s;
+    s << "refinement reached max_vertices = " << options.max_vertices << " (cell_size_fraction "
+      << options.cell_size_fraction << ", facet_distance_fraction "
+      << options.facet_distance_fraction << ")";
+    return std::pair{TetMesherStatus::kVertexLimitReached, s.str()};
+  }
+  if (error_code != CGAL::CGAL_MESH_3_NO_ERROR) {
+    summary.meshing_seconds = seconds_since(meshing_start);
+    return std::pair{TetMesherStatus::kCgalFailed,
+                     std::string(CGAL::mesh_error_string(error_code))};
+  }
+  const int iterations = options.smoothing_iterations;
+  if (options.odt) {
+    phase_start = Clock::now();
+    CGAL::odt_optimize_mesh_3(c3t3, domain, p::time_limit = 0,
+                              p::max_iteration_number = iterations);
+    summary.odt_seconds = seconds_since(phase_start);
+  }
+  if (options.lloyd) {
+    phase_start = Clock::now();
+    CGAL::lloyd_optimize_mesh_3(c3t3, domain, p::time_limit = 0,
+                                p::max_iteration_number = iterations);
+    summary.lloyd_seconds = seconds_since(phase_start);
+  }
+  const double time_limit = options.optimisation_time_limit_seconds;
+  if (options.perturb) {
+    phase_start = Clock::now();
+    const auto code = CGAL::perturb_mesh_3(c3t3, domain, p::time_limit = time_limit,
+                                           p::sliver_bound = options.sliver_bound_degrees);
+    summary.perturb_seconds = seconds_since(phase_start);
+    summary.time_limit_reached |= code == CGAL::TIME_LIMIT_REACHED;
+  }
+  if (options.exude) {
+    phase_start = Clock::now();
+    const auto code = CGAL::exude_mesh_3(c3t3, p::time_limit = time_limit,
+                                         p::sliver_bound = options.sliver_bound_degrees);
+    summary.exude_seconds = seconds_since(phase_start);
+    summary.time_limit_reached |= code == CGAL::TIME_LIMIT_REACHED;
+  }
+  summary.meshing_seconds = seconds_since(meshing_start);
+  result.mesh = extract_tets(c3t3, &summary.flipped_tets);
+  return std::nullopt;
 }
 
 }  // namespace
@@ -543,67 +638,10 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
     MeshDomain domain(sm, &random);
     if (options.protect_sharp_features) domain.detect_features(options.feature_angle_degrees);
 
-    namespace p = CGAL::parameters;
-    const double cell_size = options.cell_size_fraction * diagonal;
-    const Criteria criteria(
-        p::edge_size = cell_size, p::facet_angle = options.facet_angle_degrees,
-        p::facet_size = cell_size, p::facet_distance = options.facet_distance_fraction * diagonal,
-        p::cell_radius_edge_ratio = options.cell_radius_edge_ratio, p::cell_size = cell_size);
-
-    // Refinement, then each optimisation phase on its own (timed, return code read). Time limits
-    // are explicit: make_mesh_3's default for perturbation and exudation (the refinement time)
-    // would make the output depend on the machine's load.
-    CGAL::Mesh_error_code error_code = CGAL::CGAL_MESH_3_NO_ERROR;
-    auto phase_start = Clock::now();
-    Complex c3t3 = CGAL::make_mesh_3<Complex>(
-        domain, criteria, options.protect_sharp_features ? p::features(domain) : p::no_features(),
-        p::no_odt(), p::no_lloyd(), p::no_perturb(), p::no_exude(),
-        p::mesh_3_options(
-            p::maximal_number_of_vertices = static_cast<std::size_t>(options.max_vertices),
-            p::pointer_to_error_code = &error_code));
-    summary.refine_seconds = seconds_since(phase_start);
-    if (error_code == CGAL::CGAL_MESH_3_MAXIMAL_NUMBER_OF_VERTICES_REACHED) {
-      summary.meshing_seconds = seconds_since(meshing_start);
-      std::ostringstream s;
-      s << "refinement reached max_vertices = " << options.max_vertices << " (cell_size_fraction "
-        << options.cell_size_fraction << ", facet_distance_fraction "
-        << options.facet_distance_fraction << ")";
-      return finish(TetMesherStatus::kVertexLimitReached, s.str());
-    }
-    if (error_code != CGAL::CGAL_MESH_3_NO_ERROR) {
-      summary.meshing_seconds = seconds_since(meshing_start);
-      return finish(TetMesherStatus::kCgalFailed, CGAL::mesh_error_string(error_code));
-    }
-    const int iterations = options.smoothing_iterations;
-    if (options.odt) {
-      phase_start = Clock::now();
-      CGAL::odt_optimize_mesh_3(c3t3, domain, p::time_limit = 0,
-                                p::max_iteration_number = iterations);
-      summary.odt_seconds = seconds_since(phase_start);
-    }
-    if (options.lloyd) {
-      phase_start = Clock::now();
-      CGAL::lloyd_optimize_mesh_3(c3t3, domain, p::time_limit = 0,
-                                  p::max_iteration_number = iterations);
-      summary.lloyd_seconds = seconds_since(phase_start);
-    }
-    const double time_limit = options.optimisation_time_limit_seconds;
-    if (options.perturb) {
-      phase_start = Clock::now();
-      const auto code = CGAL::perturb_mesh_3(c3t3, domain, p::time_limit = time_limit,
-                                             p::sliver_bound = options.sliver_bound_degrees);
-      summary.perturb_seconds = seconds_since(phase_start);
-      summary.time_limit_reached |= code == CGAL::TIME_LIMIT_REACHED;
-    }
-    if (options.exude) {
-      phase_start = Clock::now();
-      const auto code = CGAL::exude_mesh_3(c3t3, p::time_limit = time_limit,
-                                           p::sliver_bound = options.sliver_bound_degrees);
-      summary.exude_seconds = seconds_since(phase_start);
-      summary.time_limit_reached |= code == CGAL::TIME_LIMIT_REACHED;
-    }
-    summary.meshing_seconds = seconds_since(meshing_start);
-    result.mesh = extract_tets(c3t3, &summary.flipped_tets);
+    const std::optional<std::pair<TetMesherStatus, std::string>> failed =
+        refine_and_optimise<Complex>(domain, options.protect_sharp_features, diagonal, options,
+                                     result, meshing_start);
+    if (failed) return finish(failed->first, failed->second);
   } catch (const std::exception& e) {
     summary.meshing_seconds = seconds_since(meshing_start);
     std::string what = e.what();
@@ -620,6 +658,78 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
     return finish(TetMesherStatus::kEmptyMesh,
                   "no tet lies inside the surface (is cell_size_fraction far too large?)");
   }
+  summary.num_boundary_faces = count_boundary_faces(result.mesh);
+  fill_quality(result.mesh, &summary);
+  return finish(TetMesherStatus::kOk, "");
+}
+
+TetMesherResult make_tet_mesh_from_image(const std::vector<float>& values,
+                                         const Eigen::Vector3i& size,
+                                         const Eigen::Vector3d& spacing, double iso,
+                                         const TetMesherOptions& options) {
+  const auto start = Clock::now();
+  TetMesherResult result;
+  TetMesherSummary& summary = result.summary;
+  const auto finish = [&](TetMesherStatus status, std::string message) {
+    summary.status = status;
+    summary.message = std::move(message);
+    if (status != TetMesherStatus::kOk) result.mesh = TetMesh{};
+    summary.seconds = seconds_since(start);
+    return result;
+  };
+  if (const auto error = options.validate())
+    return finish(TetMesherStatus::kInvalidOptions, *error);
+  if ((size.array() <= 0).any() || values.size() != static_cast<std::size_t>(size.prod()) ||
+      !(spacing.array() > 0).all() || !std::isfinite(iso)) {
+    return finish(TetMesherStatus::kInvalidSurface,
+                  "image: sizes, spacing or the number of values do not match");
+  }
+  // Sizes are relative to the bounding box of the voxels above iso.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (int k = 0; k < size.z(); ++k)
+    for (int j = 0; j < size.y(); ++j)
+      for (int i = 0; i < size.x(); ++i) {
+        const float v = values[static_cast<std::size_t>(
+            (static_cast<Eigen::Index>(k) * size.y() + j) * size.x() + i)];
+        if (!std::isfinite(v))
+          return finish(TetMesherStatus::kInvalidSurface, "image: a value is not finite");
+        if (v > iso) {
+          const Eigen::Vector3d p = Eigen::Vector3d(i, j, k).cwiseProduct(spacing);
+          lo = lo.cwiseMin(p);
+          hi = hi.cwiseMax(p);
+        }
+      }
+  if (!(hi.x() >= lo.x()))
+    return finish(TetMesherStatus::kEmptyMesh, "image: no voxel above the iso value");
+  summary.bounding_box_diagonal = (hi - lo + spacing).norm();
+  summary.check_seconds = seconds_since(start);
+  const auto meshing_start = Clock::now();
+  try {
+    _image* raw =
+        _createImage(static_cast<std::size_t>(size.x()), static_cast<std::size_t>(size.y()),
+                     static_cast<std::size_t>(size.z()), 1, spacing.x(), spacing.y(), spacing.z(),
+                     sizeof(float), WK_FLOAT, SGN_SIGNED);
+    if (raw == nullptr)
+      return finish(TetMesherStatus::kCgalFailed, "CGAL could not allocate the image");
+    std::memcpy(raw->data, values.data(), values.size() * sizeof(float));
+    const CGAL::Image_3 image(raw);
+    CGAL::Random random(options.random_seed);
+    CGAL::get_default_random() = CGAL::Random(options.random_seed);
+    const ImageDomain domain = ImageDomain::create_gray_image_mesh_domain(
+        image, static_cast<float>(iso), 0.0f, 1e-6, &random);
+    const std::optional<std::pair<TetMesherStatus, std::string>> failed =
+        refine_and_optimise<ImageComplex>(domain, false, summary.bounding_box_diagonal, options,
+                                          result, meshing_start);
+    if (failed) return finish(failed->first, failed->second);
+  } catch (const std::exception& e) {
+    summary.meshing_seconds = seconds_since(meshing_start);
+    std::string what = e.what();
+    std::replace(what.begin(), what.end(), '\n', ' ');
+    return finish(TetMesherStatus::kCgalFailed, "CGAL threw: " + what);
+  }
+  summary.num_vertices = result.mesh.vertices.rows();
+  summary.num_tets = result.mesh.tets.rows();
+  if (summary.num_tets == 0) return finish(TetMesherStatus::kEmptyMesh, "no tet inside the region");
   summary.num_boundary_faces = count_boundary_faces(result.mesh);
   fill_quality(result.mesh, &summary);
   return finish(TetMesherStatus::kOk, "");

@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "offline/io/tet_mesh_io.hpp"
 
@@ -160,5 +161,15 @@ struct TetMesherResult {
 TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
                               const Eigen::Ref<const Eigen::MatrixXi>& faces,
                               const TetMesherOptions& options = {});
+
+/// Meshes the region of a scalar image where its trilinear interpolation exceeds iso (CGAL's gray
+/// image domain): a label mask smoothed to [0, 1] with iso 0.5 gives a sub-voxel surface. values:
+/// size.x·size.y·size.z numbers, i fastest; voxel (i, j, k) sits at (i·sx, j·sy, k·sz) (the caller
+/// maps that to world coordinates); outside the image counts as 0. Sizes are fractions of the
+/// diagonal of the box of the voxels above iso. Never throws; failures are in summary.
+TetMesherResult make_tet_mesh_from_image(const std::vector<float>& values,
+                                         const Eigen::Vector3i& size,
+                                         const Eigen::Vector3d& spacing, double iso,
+                                         const TetMesherOptions& options = {});
 
 }  // namespace sinew::offline

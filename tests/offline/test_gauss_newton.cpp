@@ -285,6 +285,93 @@ TEST(GaussNewton, FarAttachmentsAreReachedByLoadSteps) {
   EXPECT_LT(worst, 0.002);  // the springs hold the twisted end to 2 mm of 7.5 cm
 }
 
+// Resuming from any checkpoint gives the uninterrupted run's result bit for bit: after the initial
+// fit the loop's state is (s, x) and its position. Also with a first equilibrium that needed load
+// steps (the spring targets must not keep a trace of them).
+TEST(GaussNewton, ResumingFromEveryCheckpointGivesTheUninterruptedResult) {
+  for (const bool twisted : {false, true}) {
+    SCOPED_TRACE(twisted ? "twisted, load-stepped first equilibrium" : "landmarks");
+    Bar bar = make_bar();
+    const Truth truth = make_truth(bar, 7);
+    RegistrationConstraints constraints;
+    GaussNewtonOptions options;
+    options.max_iterations_per_stage = 3;
+    if (twisted) {
+      for (int v = 0; v < bar.mesh.rest_positions.rows(); ++v) {
+        const Eigen::Vector3d X = bar.mesh.rest_positions.row(v).transpose();
+        if (X.x() < bar.length - 1e-9) continue;
+        PointConstraint c;
+        c.kind = ConstraintKind::kAttachment;
+        c.point = at_vertex(bar.mesh.tets, v);
+        c.target = Eigen::Vector3d(0.0, 0.0375, 0.0375) +
+                   Eigen::AngleAxisd(1.2, Eigen::Vector3d::UnitX()) *
+                       (X - Eigen::Vector3d(0.0, 0.0375, 0.0375));
+        c.weight = 1e4;
+        bar.attachments.push_back(c);
+      }
+      options.equilibrium.max_iterations = 6;  // the direct first solve fails: load steps
+      options.beta = 1e3;
+      GaussNewtonOptions direct = options;
+      direct.first_equilibrium_steps = 1;
+      direct.initial_constant_fit = false;
+      direct.max_iterations_per_stage = 0;
+      RegistrationConstraints springs_only;
+      springs_only.attachments = bar.attachments;
+      ASSERT_EQ(register_attached(*bar.energy, springs_only, nullptr, direct).summary.termination,
+                GaussNewtonTermination::kEquilibriumFailed);
+    }
+    constraints.attachments = bar.attachments;
+    for (std::size_t i = 0; i < 20; ++i) {
+      PointConstraint c;
+      c.kind = ConstraintKind::kLandmark;
+      c.point = at_vertex(bar.mesh.tets, truth.candidates[i]);
+      c.target = truth.x.segment<3>(3 * truth.candidates[i]) +
+                 (twisted ? Eigen::Vector3d(0, 0, 0.002) : Eigen::Vector3d::Zero());
+      constraints.landmarks.push_back(c);
+    }
+    std::vector<GaussNewtonCheckpoint> checkpoints;
+    const RegistrationResult whole =
+        register_attached(*bar.energy, constraints, nullptr, options, {},
+                          [&](const GaussNewtonCheckpoint& c) { checkpoints.push_back(c); });
+    ASSERT_TRUE(whole.summary.usable()) << whole.summary.full_report();
+    std::cout << whole.summary.full_report();
+    // One checkpoint after the initial fit and one per iteration; the last one has nothing left.
+    ASSERT_EQ(checkpoints.size(), whole.summary.iterations.size());
+    ASSERT_GE(checkpoints.size(), 3u);
+    EXPECT_EQ(checkpoints.front().iterations.size(), 1u);
+    EXPECT_EQ(checkpoints.front().next_stage, RegistrationStage::kAttachments);
+    EXPECT_EQ(checkpoints.front().next_iteration, 1);
+    EXPECT_FALSE(checkpoints.back().next_stage.has_value());
+    EXPECT_EQ(checkpoints.back().termination, whole.summary.termination);
+    for (std::size_t k = 0; k < checkpoints.size(); ++k) {
+      SCOPED_TRACE(k);
+      const RegistrationResult resumed =
+          register_attached(*bar.energy, constraints, nullptr, options, {}, {}, &checkpoints[k]);
+      ASSERT_TRUE(resumed.summary.usable()) << resumed.summary.message;
+      EXPECT_EQ((resumed.s - whole.s).lpNorm<Eigen::Infinity>(), 0.0);
+      EXPECT_EQ((resumed.x - whole.x).lpNorm<Eigen::Infinity>(), 0.0);
+      EXPECT_EQ(resumed.summary.final_objective, whole.summary.final_objective);
+      EXPECT_EQ(resumed.summary.initial_objective, whole.summary.initial_objective);
+      EXPECT_EQ(resumed.summary.termination, whole.summary.termination);
+      EXPECT_EQ(resumed.summary.iterations.size(), whole.summary.iterations.size());
+      EXPECT_EQ(resumed.summary.equilibrium_solves, whole.summary.equilibrium_solves);
+    }
+    // A checkpoint that does not fit is an input error.
+    GaussNewtonCheckpoint wrong = checkpoints.front();
+    wrong.x.conservativeResize(wrong.x.size() - 3);
+    const RegistrationResult refused =
+        register_attached(*bar.energy, constraints, nullptr, options, {}, {}, &wrong);
+    EXPECT_EQ(refused.summary.termination, GaussNewtonTermination::kInvalidInput);
+    EXPECT_NE(refused.summary.message.find("checkpoint: s has"), std::string::npos)
+        << refused.summary.message;
+    wrong = checkpoints.front();
+    wrong.free_object = true;
+    EXPECT_EQ(register_attached(*bar.energy, constraints, nullptr, options, {}, {}, &wrong)
+                  .summary.message,
+              "checkpoint: written by register_free, resumed by register_attached");
+  }
+}
+
 TEST(GaussNewton, BadInputsAreStatuses) {
   Bar bar = make_bar();
   RegistrationConstraints constraints;

@@ -8,6 +8,7 @@
 //   OUTDIR/report.json         per-iteration log, totals, termination, inputs and mesh quality
 //
 //   sinew-register --case case.json --out OUTDIR [--quiet] [--max-iterations N] [--truth FILE]
+//   sinew-register --resume OUTDIR [--quiet]
 //   sinew-register --make-demo-case DIR
 //   sinew-register --batch manifest.json [--task N] [--quiet] [--max-iterations N]
 //
@@ -19,6 +20,11 @@
 // manifest, each in a process of its own, or only case N (--task N or SLURM_ARRAY_TASK_ID, for a
 // Slurm job array): tools/register/batch.hpp.
 //
+// Checkpoints: OUTDIR/checkpoint.sinew is written when the registration starts and after every
+// Gauss–Newton iteration (tools/register/checkpoint_file.hpp), and removed once report.json is
+// written. --resume OUTDIR re-reads the case it names, checks that mesh, markers and options are
+// the same, and continues from the last finished iteration to the outputs of an uninterrupted run.
+//
 // The case file is described in tools/register/case_file.hpp. The geometry is normalised (bounding-
 // box centre at the origin, diagonal 1, unit material) so the defaults fit millimetres and metres;
 // results are mapped back to the case's units.
@@ -28,8 +34,10 @@
 #include <fmt/core.h>
 #include <CLI/CLI.hpp>
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -51,6 +59,7 @@
 #include "tools/io/json_file.hpp"
 #include "tools/register/batch.hpp"
 #include "tools/register/case_file.hpp"
+#include "tools/register/checkpoint_file.hpp"
 #include "tools/register/demo_case.hpp"
 #include "tools/register/marker_checks.hpp"
 #include "tools/register/surface_distance.hpp"
@@ -149,7 +158,55 @@ struct Outputs {
   fs::path surface() const { return dir / "result_surface.obj"; }
   fs::path vtu() const { return dir / "result.vtu"; }
   fs::path report() const { return dir / "report.json"; }
+  fs::path checkpoint() const { return tools::checkpoint_path(dir); }
 };
+
+// What to run: a case into OUTDIR, or the resumption of a checkpoint's run.
+struct RunRequest {
+  std::string case_path;  // --case as given: reported
+  std::string case_file;  // the file read (case_path, or its absolute form on resume)
+  std::string out_dir;
+  bool quiet = false;
+  std::optional<int> max_iterations;
+  std::string truth_path;  // --truth as given: reported
+  std::string truth_file;  // the file read
+  std::optional<tools::RegisterCheckpoint> resume;
+};
+
+// 64-bit hash of a matrix's coefficients, as hex.
+template <typename Matrix>
+std::uint64_t hash_matrix(const Matrix& m, std::uint64_t hash = tools::kFnvOffset) {
+  return tools::fnv1a(m.data(),
+                      sizeof(typename Matrix::Scalar) * static_cast<std::size_t>(m.size()), hash);
+}
+std::uint64_t hash_points(const std::vector<offline::EmbeddedPoint>& points, std::uint64_t hash) {
+  for (const offline::EmbeddedPoint& p : points) {
+    const long long tet = static_cast<long long>(p.tet);
+    hash = tools::fnv1a(&tet, sizeof tet, hash);
+    hash = hash_matrix(p.weights, hash);
+  }
+  return hash;
+}
+std::uint64_t hash_constraints(const std::vector<offline::PointConstraint>& list,
+                               std::uint64_t hash) {
+  for (const offline::PointConstraint& c : list) {
+    hash = hash_points({c.point}, hash);
+    hash = hash_matrix(c.target, hash);
+    hash = tools::fnv1a(&c.weight, sizeof c.weight, hash);
+  }
+  return hash;
+}
+std::string hex(std::uint64_t value) {
+  return fmt::format("{:016x}", value);
+}
+
+// "12 s", "3.5 min", "2.1 h".
+std::string duration(double seconds) {
+  if (seconds < 10) return fmt::format("{:.1f} s", seconds);
+  if (seconds < 90) return fmt::format("{:.0f} s", seconds);
+  if (seconds < 5400) return fmt::format("{:.1f} min", seconds / 60);
+  return fmt::format("{:.1f} h", seconds / 3600);
+}
 
 // Creates OUTDIR (after every input check) and proves it writable before the long run.
 void prepare_output_dir(const Outputs& out) {
@@ -166,8 +223,11 @@ void prepare_output_dir(const Outputs& out) {
   fs::remove(probe, ec);
 }
 
-int run(const std::string& case_path, const std::string& out_dir, bool quiet,
-        std::optional<int> max_iterations, const std::string& truth_path) {
+int run(const RunRequest& request) {
+  const std::string& case_path = request.case_file;
+  const std::string& truth_path = request.truth_file;
+  const bool quiet = request.quiet;
+  const std::optional<int>& max_iterations = request.max_iterations;
   const Clock::time_point run_start = Clock::now();
   const Log log(quiet);
   nlohmann::json phases;
@@ -207,7 +267,7 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
     offline::io::SurfaceMeshReadResult r = offline::io::read_surface_mesh(truth_path);
     if (!r.ok()) throw tools::InputError(r.error);
     truth = std::move(*r.mesh);
-    log.line("truth: {}, {} vertices, {} triangles", truth_path, truth->vertices.rows(),
+    log.line("truth: {}, {} vertices, {} triangles", request.truth_path, truth->vertices.rows(),
              truth->triangles.rows());
   }
   const Eigen::MatrixXd template_vertices =
@@ -377,9 +437,71 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
   options.min_step = c.stop.min_step;
   if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
 
-  // Every input is valid: only now does OUTDIR get created.
-  const Outputs out{fs::path(out_dir)};
+  // What a checkpoint must match to be resumed here: mode, mesh, markers, output surface, options.
+  nlohmann::json identification;
+  identification["mode"] = free_object ? "free" : "attached";
+  identification["tet_vertices"] = rest.rows();
+  identification["tets"] = tets.rows();
+  identification["mesh_hash"] = hex(hash_matrix(tets, hash_matrix(rest)));
+  identification["attachments"] = constraints.attachments.size();
+  identification["landmarks"] = constraints.landmarks.size();
+  identification["icp_markers"] = constraints.icp_markers.size();
+  {
+    std::uint64_t h = hash_constraints(constraints.attachments, tools::kFnvOffset);
+    h = hash_constraints(constraints.landmarks, h);
+    for (const Eigen::Vector3d& z : constraints.icp_markers) h = hash_matrix(z, h);
+    identification["markers_hash"] = hex(h);
+  }
+  identification["surface_hash"] =
+      hex(hash_matrix(surface_triangles, hash_points(surface_points, tools::kFnvOffset)));
+  identification["options"] = {{"alpha", tools::hex_double(options.alpha)},
+                               {"beta", tools::hex_double(options.beta)},
+                               {"attachment_stiffness", tools::hex_double(stiffness)},
+                               {"max_iterations_per_stage", options.max_iterations_per_stage},
+                               {"max_marker_error", tools::hex_double(options.max_marker_error)},
+                               {"min_step", tools::hex_double(options.min_step)}};
+  const Outputs out{fs::path(request.out_dir)};
+  if (request.resume) {
+    if (const auto mismatch =
+            tools::identification_mismatch(request.resume->identification, identification)) {
+      throw tools::InputError(out.checkpoint().string() + ": does not match " + case_path +
+                              " as it is now (" + *mismatch +
+                              "): the case, its template or its markers changed since the run "
+                              "started; start it again with --case");
+    }
+    if (request.resume->state && request.resume->state->free_object != free_object) {
+      throw tools::InputError(out.checkpoint().string() + ": its state is of a " +
+                              (free_object ? "attached" : "free") + " object, the case's is not");
+    }
+  }
+
+  // Every input is valid: only now does OUTDIR get created. Results of an earlier run there go
+  // first, so that a run killed from now on leaves nothing that looks finished (report.json is
+  // written last); the checkpoint marks the run as unfinished and resumable from the start.
   prepare_output_dir(out);
+  for (const fs::path& stale : {out.report(), out.surface(), out.vtu()}) {
+    std::error_code ec;
+    fs::remove(stale, ec);
+  }
+  tools::RegisterCheckpoint checkpoint;
+  checkpoint.case_path = request.case_path;
+  checkpoint.case_file = fs::absolute(request.case_file).string();
+  checkpoint.truth_path = request.truth_path;
+  checkpoint.truth_file =
+      request.truth_file.empty() ? std::string() : fs::absolute(request.truth_file).string();
+  checkpoint.max_iterations = max_iterations;
+  checkpoint.identification = identification;
+  if (request.resume) {
+    checkpoint.resumes = request.resume->resumes + 1;
+    checkpoint.state = request.resume->state;
+  }
+  tools::write_checkpoint(out.checkpoint(), checkpoint);
+  const auto save_checkpoint = [&](const offline::GaussNewtonCheckpoint& state) {
+    checkpoint.state = state;
+    tools::write_checkpoint(out.checkpoint(), checkpoint);
+  };
+  const offline::GaussNewtonCheckpoint* resume_state =
+      request.resume && request.resume->state ? &*request.resume->state : nullptr;
 
   // ---- registration
   start = Clock::now();
@@ -387,20 +509,63 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
       "registering: {} tets, {} plastic dofs, alpha {:g}, beta {:g}, attachment stiffness "
       "{:g}, ICP tolerance {:.3g}{}",
       tets.rows(), 6 * tets.rows(), options.alpha, options.beta, stiffness, max_marker_error, u);
+  // The stages as the registration runs them, for the estimate of the time left: the mean time
+  // of a Gauss–Newton iteration so far times the iterations the stages may still take (an upper
+  // bound: stages usually stop early).
+  std::vector<offline::RegistrationStage> stages;
+  if (!free_object) stages.push_back(offline::RegistrationStage::kAttachments);
+  if (!constraints.landmarks.empty()) stages.push_back(offline::RegistrationStage::kLandmarks);
+  if (!constraints.icp_markers.empty()) stages.push_back(offline::RegistrationStage::kIcpMarkers);
+  double iteration_seconds = 0.0;
+  int iterations_timed = 0;
+  const auto time_iteration = [&](const offline::GaussNewtonIteration& it) {
+    if (it.stage == offline::RegistrationStage::kInitialFit) return;
+    iteration_seconds += it.seconds;
+    ++iterations_timed;
+  };
+  if (resume_state != nullptr) {
+    for (const offline::GaussNewtonIteration& it : resume_state->iterations) time_iteration(it);
+  }
   const auto progress = [&](const offline::GaussNewtonIteration& it) {
+    time_iteration(it);
+    std::string left;
+    const auto at = std::find(stages.begin(), stages.end(), it.stage);
+    if (iterations_timed > 0 && at != stages.end()) {
+      const long remaining =
+          std::max(0L, static_cast<long>(options.max_iterations_per_stage - it.iteration)) +
+          static_cast<long>(options.max_iterations_per_stage) *
+              static_cast<long>(stages.end() - at - 1);
+      left = fmt::format("  at most {} left",
+                         duration(remaining * iteration_seconds / iterations_timed));
+    }
     log.line(
         "  {:<11} {:>3}  objective {:.4e}  step {:.3f}  marker error mean {:.4g} max {:.4g}{}"
-        "  {:>2} solves  {:.1f} s",
+        "  {:>2} solves  {:.1f} s{}",
         offline::to_string(it.stage), it.iteration, it.objective, it.step,
         it.marker_error_mean * frame.scale, it.marker_error_max * frame.scale, u,
-        it.equilibrium_solves, it.seconds);
+        it.equilibrium_solves, it.seconds, left);
   };
   log.line("mode: {}", free_object ? "free object (no attachments: rigid frame fitted, §3.6)"
                                    : "attached object");
+  if (request.resume) {
+    if (resume_state == nullptr) {
+      log.line(
+          "resuming: the run stopped before its initial fit was done; registering from the "
+          "start");
+    } else if (resume_state->next_stage) {
+      log.line("resuming at stage {} iteration {} ({} iterations done, {:.1f} s of registration)",
+               offline::to_string(*resume_state->next_stage), resume_state->next_iteration,
+               resume_state->iterations.size(), resume_state->seconds);
+    } else {
+      log.line("resuming after the last stage ({} iterations done): writing the outputs",
+               resume_state->iterations.size());
+    }
+  }
   const offline::RegistrationResult result =
-      free_object
-          ? offline::register_free(*energy, constraints, closest.get(), options, progress)
-          : offline::register_attached(*energy, constraints, closest.get(), options, progress);
+      free_object ? offline::register_free(*energy, constraints, closest.get(), options, progress,
+                                           save_checkpoint, resume_state)
+                  : offline::register_attached(*energy, constraints, closest.get(), options,
+                                               progress, save_checkpoint, resume_state);
   const offline::GaussNewtonSummary& summary = result.summary;
   phases["registration"] = seconds_since(start);
   log.line("registration: {} ({}), final marker error mean {:.4g} max {:.4g}{}, {:.1f} s",
@@ -412,7 +577,8 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
   start = Clock::now();
   nlohmann::json report;
   report["tool"] = "sinew-register";
-  report["case"] = case_path;
+  report["case"] = request.case_path;
+  report["resumes"] = checkpoint.resumes;
   report["length_unit"] = unit.empty() ? "template units" : unit;
   report["inputs"] = inputs;
   report["mode"] = free_object ? "free" : "attached";
@@ -476,7 +642,7 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
       const tools::SurfaceDistanceStats from_truth =
           tools::vertex_to_surface_distances(*truth, deformed);
       const double farthest = std::max(to_truth.max, from_truth.max);
-      report["truth"] = {{"surface", truth_path},
+      report["truth"] = {{"surface", request.truth_path},
                          {"result_to_truth_mean", to_truth.mean},
                          {"result_to_truth_max", to_truth.max},
                          {"truth_to_result_mean", from_truth.mean},
@@ -485,7 +651,7 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
       log.line(
           "truth: result vertices to {} mean {:.4g} max {:.4g}{}; its vertices to the result "
           "mean {:.4g} max {:.4g}{}; worst {:.2f}% of the diagonal",
-          truth_path, to_truth.mean, to_truth.max, u, from_truth.mean, from_truth.max, u,
+          request.truth_path, to_truth.mean, to_truth.max, u, from_truth.mean, from_truth.max, u,
           100 * farthest / frame.scale);
     }
 
@@ -518,19 +684,61 @@ int run(const std::string& case_path, const std::string& out_dir, bool quiet,
                       {"phases", phases}};
   tools::write_json_file(out.report().string(), report);
   written.push_back(out.report().string());
+  {
+    // Done: nothing left to resume.
+    std::error_code ec;
+    fs::remove(out.checkpoint(), ec);
+  }
   for (const auto& path : written) log.line("wrote {}", path.get<std::string>());
   return summary.usable() ? 0 : 1;
 }
 
 // One case with its errors reported: the exit status of the tool.
-int run_reporting_errors(const std::string& case_path, const std::string& out_dir, bool quiet,
-                         std::optional<int> max_iterations, const std::string& truth_path) {
+int run_reporting_errors(const RunRequest& request) {
   try {
-    return run(case_path, out_dir, quiet, max_iterations, truth_path);
+    return run(request);
   } catch (const std::exception& e) {  // tools::InputError and anything unexpected alike
     std::cerr << "sinew-register: " << e.what() << "\n";
     return 2;
   }
+}
+
+int run_reporting_errors(const std::string& case_path, const std::string& out_dir, bool quiet,
+                         std::optional<int> max_iterations, const std::string& truth_path) {
+  RunRequest request;
+  request.case_path = request.case_file = case_path;
+  request.out_dir = out_dir;
+  request.quiet = quiet;
+  request.max_iterations = max_iterations;
+  request.truth_path = request.truth_file = truth_path;
+  return run_reporting_errors(request);
+}
+
+// --resume OUTDIR: the run of OUTDIR's checkpoint, continued.
+int resume_reporting_errors(const std::string& out_dir, bool quiet) {
+  RunRequest request;
+  try {
+    tools::RegisterCheckpoint checkpoint = tools::read_checkpoint(tools::checkpoint_path(out_dir));
+    request.case_path = checkpoint.case_path;
+    request.truth_path = checkpoint.truth_path;
+    // The paths as given when they still name the same files from here (same working folder),
+    // so that report.json reads as the uninterrupted run's.
+    const auto same = [](const std::string& given, const std::string& absolute) {
+      return !given.empty() && fs::absolute(given) == fs::path(absolute);
+    };
+    request.case_file = same(checkpoint.case_path, checkpoint.case_file) ? checkpoint.case_path
+                                                                         : checkpoint.case_file;
+    request.truth_file = same(checkpoint.truth_path, checkpoint.truth_file) ? checkpoint.truth_path
+                                                                            : checkpoint.truth_file;
+    request.out_dir = out_dir;
+    request.quiet = quiet;
+    request.max_iterations = checkpoint.max_iterations;
+    request.resume = std::move(checkpoint);
+  } catch (const std::exception& e) {
+    std::cerr << "sinew-register: " << e.what() << "\n";
+    return 2;
+  }
+  return run_reporting_errors(request);
 }
 
 }  // namespace
@@ -540,7 +748,7 @@ int main(int argc, char** argv) {
   std::string case_path, out_dir;
   bool quiet = false;
   std::optional<int> max_iterations;
-  std::string truth_path, demo_dir, batch_path;
+  std::string truth_path, demo_dir, batch_path, resume_dir;
   std::optional<long> task;
   app.add_option("--case", case_path, "registration case (JSON)");
   app.add_option("--out", out_dir, "output folder (created)");
@@ -557,6 +765,9 @@ int main(int argc, char** argv) {
                  "with --batch: run case N of the manifest alone (0-based; default: "
                  "SLURM_ARRAY_TASK_ID when set, else every case)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--resume", resume_dir,
+                 "continue the killed or interrupted run whose output folder this is, from its "
+                 "checkpoint (OUTDIR/checkpoint.sinew), to the outputs of an uninterrupted run");
   app.add_flag("--quiet", quiet, "print nothing but errors");
   app.add_option("--max-iterations", max_iterations,
                  "Gauss-Newton iterations per stage (overrides stop.max_iterations)")
@@ -567,8 +778,10 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   if (!demo_dir.empty()) {
-    if (!case_path.empty() || !out_dir.empty() || !truth_path.empty() || !batch_path.empty()) {
-      std::cerr << "sinew-register: --make-demo-case takes no --case, --out, --truth or --batch\n";
+    if (!case_path.empty() || !out_dir.empty() || !truth_path.empty() || !batch_path.empty() ||
+        !resume_dir.empty()) {
+      std::cerr << "sinew-register: --make-demo-case takes no --case, --out, --truth, --batch or "
+                   "--resume\n";
       return 2;
     }
     try {
@@ -589,6 +802,15 @@ int main(int argc, char** argv) {
       std::cerr << "sinew-register: " << e.what() << "\n";
       return 2;
     }
+  }
+  if (!resume_dir.empty()) {
+    if (!case_path.empty() || !out_dir.empty() || !truth_path.empty() || !batch_path.empty() ||
+        max_iterations || task) {
+      std::cerr << "sinew-register: --resume OUTDIR takes only --quiet (the checkpoint names the "
+                   "case, --truth and --max-iterations of the run)\n";
+      return 2;
+    }
+    return resume_reporting_errors(resume_dir, quiet);
   }
   if (!batch_path.empty()) {
     if (!case_path.empty() || !out_dir.empty() || !truth_path.empty()) {

@@ -1,0 +1,308 @@
+#include "tools/register/checkpoint_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "tools/io/json_file.hpp"
+
+namespace sinew::tools {
+namespace {
+
+namespace fs = std::filesystem;
+using offline::GaussNewtonIteration;
+using offline::GaussNewtonTermination;
+using offline::RegistrationStage;
+
+constexpr const char* kFormat = "sinew-register checkpoint";
+constexpr int kVersion = 1;
+
+constexpr RegistrationStage kStages[] = {
+    RegistrationStage::kInitialFit, RegistrationStage::kAttachments, RegistrationStage::kLandmarks,
+    RegistrationStage::kIcpMarkers};
+constexpr GaussNewtonTermination kTerminations[] = {
+    GaussNewtonTermination::kMaxIterations,     GaussNewtonTermination::kMarkerTolerance,
+    GaussNewtonTermination::kSmallStep,         GaussNewtonTermination::kSmallDecrease,
+    GaussNewtonTermination::kLineSearchFailed,  GaussNewtonTermination::kEquilibriumFailed,
+    GaussNewtonTermination::kLinearSolveFailed, GaussNewtonTermination::kInvalidInput};
+
+// Reads one checkpoint's fields; every failure names the file and the field.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const std::string& field, const std::string& what) const {
+    throw InputError(file_ + ": " + field + " " + what +
+                     " (not a sinew-register checkpoint, or a damaged one)");
+  }
+  const nlohmann::json& at(const nlohmann::json& j, const std::string& key,
+                           const std::string& where) const {
+    if (!j.is_object() || !j.contains(key)) fail(where + key, "is missing");
+    return j.at(key);
+  }
+  double real(const nlohmann::json& j, const std::string& field) const {
+    if (!j.is_string()) fail(field, "is not a hex-float string");
+    const std::string text = j.get<std::string>();
+    char* end = nullptr;
+    const double value = std::strtod(text.c_str(), &end);
+    if (text.empty() || end != text.c_str() + text.size()) fail(field, "= '" + text + "' is bad");
+    return value;
+  }
+  long integer(const nlohmann::json& j, const std::string& field) const {
+    if (!j.is_number_integer()) fail(field, "is not an integer");
+    return j.get<long>();
+  }
+  std::string string(const nlohmann::json& j, const std::string& field) const {
+    if (!j.is_string()) fail(field, "is not a string");
+    return j.get<std::string>();
+  }
+  Eigen::VectorXd vector(const nlohmann::json& j, const std::string& field) const {
+    if (!j.is_array()) fail(field, "is not an array");
+    Eigen::VectorXd v(static_cast<Eigen::Index>(j.size()));
+    for (std::size_t i = 0; i < j.size(); ++i)
+      v[static_cast<Eigen::Index>(i)] = real(j[i], field + "[" + std::to_string(i) + "]");
+    return v;
+  }
+  RegistrationStage stage(const nlohmann::json& j, const std::string& field) const {
+    const std::string name = string(j, field);
+    for (RegistrationStage s : kStages)
+      if (name == offline::to_string(s)) return s;
+    fail(field, "= '" + name + "' is not a stage");
+  }
+  GaussNewtonTermination termination(const nlohmann::json& j, const std::string& field) const {
+    const std::string name = string(j, field);
+    for (GaussNewtonTermination t : kTerminations)
+      if (name == offline::to_string(t)) return t;
+    fail(field, "= '" + name + "' is not a termination");
+  }
+
+ private:
+  std::string file_;
+};
+
+nlohmann::json vector_json(const Eigen::VectorXd& v) {
+  nlohmann::json out = nlohmann::json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(hex_double(v[i]));
+  return out;
+}
+
+nlohmann::json iteration_json(const GaussNewtonIteration& it) {
+  return {{"stage", offline::to_string(it.stage)},
+          {"iteration", it.iteration},
+          {"objective", hex_double(it.objective)},
+          {"objective_before", hex_double(it.objective_before)},
+          {"predicted_decrease", hex_double(it.predicted_decrease)},
+          {"step", hex_double(it.step)},
+          {"marker_error_mean", hex_double(it.marker_error_mean)},
+          {"marker_error_max", hex_double(it.marker_error_max)},
+          {"equilibrium_solves", it.equilibrium_solves},
+          {"clamped_tets", it.clamped_tets},
+          {"jacobian_seconds", hex_double(it.jacobian_seconds)},
+          {"woodbury_seconds", hex_double(it.woodbury_seconds)},
+          {"line_search_seconds", hex_double(it.line_search_seconds)},
+          {"seconds", hex_double(it.seconds)}};
+}
+
+GaussNewtonIteration read_iteration(const Reader& r, const nlohmann::json& j,
+                                    const std::string& where) {
+  GaussNewtonIteration it;
+  const auto real = [&](const char* key) { return r.real(r.at(j, key, where), where + key); };
+  it.stage = r.stage(r.at(j, "stage", where), where + "stage");
+  it.iteration = static_cast<int>(r.integer(r.at(j, "iteration", where), where + "iteration"));
+  it.objective = real("objective");
+  it.objective_before = real("objective_before");
+  it.predicted_decrease = real("predicted_decrease");
+  it.step = real("step");
+  it.marker_error_mean = real("marker_error_mean");
+  it.marker_error_max = real("marker_error_max");
+  it.equilibrium_solves = static_cast<int>(
+      r.integer(r.at(j, "equilibrium_solves", where), where + "equilibrium_solves"));
+  it.clamped_tets =
+      static_cast<int>(r.integer(r.at(j, "clamped_tets", where), where + "clamped_tets"));
+  it.jacobian_seconds = real("jacobian_seconds");
+  it.woodbury_seconds = real("woodbury_seconds");
+  it.line_search_seconds = real("line_search_seconds");
+  it.seconds = real("seconds");
+  return it;
+}
+
+std::string describe(const nlohmann::json& j) {
+  return j.is_string() ? j.get<std::string>() : j.dump();
+}
+
+}  // namespace
+
+std::string hex_double(double value) {
+  char buffer[64];
+  const int n = std::snprintf(buffer, sizeof buffer, "%a", value);
+  return std::string(buffer, static_cast<std::size_t>(n));
+}
+
+std::uint64_t fnv1a(const void* data, std::size_t bytes, std::uint64_t hash) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (std::size_t i = 0; i < bytes; ++i) {
+    hash ^= p[i];
+    hash *= 1099511628211ULL;
+  }
+  return hash;
+}
+
+fs::path checkpoint_path(const fs::path& out_dir) {
+  return out_dir / "checkpoint.sinew";
+}
+
+void write_checkpoint(const fs::path& path, const RegisterCheckpoint& checkpoint) {
+  nlohmann::json j;
+  j["format"] = kFormat;
+  j["version"] = kVersion;
+  j["case"] = checkpoint.case_path;
+  j["case_file"] = checkpoint.case_file;
+  j["truth"] = checkpoint.truth_path;
+  j["truth_file"] = checkpoint.truth_file;
+  j["max_iterations"] = checkpoint.max_iterations ? nlohmann::json(*checkpoint.max_iterations)
+                                                  : nlohmann::json(nullptr);
+  j["resumes"] = checkpoint.resumes;
+  j["identification"] = checkpoint.identification;
+  if (checkpoint.state) {
+    const offline::GaussNewtonCheckpoint& s = *checkpoint.state;
+    nlohmann::json state;
+    state["free_object"] = s.free_object;
+    state["next_stage"] =
+        s.next_stage ? nlohmann::json(offline::to_string(*s.next_stage)) : nlohmann::json(nullptr);
+    state["next_iteration"] = s.next_iteration;
+    state["termination"] = offline::to_string(s.termination);
+    state["initial_objective"] = hex_double(s.initial_objective);
+    state["equilibrium_solves"] = s.equilibrium_solves;
+    state["seconds"] = hex_double(s.seconds);
+    nlohmann::json iterations = nlohmann::json::array();
+    for (const GaussNewtonIteration& it : s.iterations) iterations.push_back(iteration_json(it));
+    state["iterations"] = iterations;
+    state["s"] = vector_json(s.s);
+    state["x"] = vector_json(s.x);
+    j["state"] = state;
+  } else {
+    j["state"] = nullptr;
+  }
+  const std::string text = j.dump() + "\n";
+
+  const std::string tmp = path.string() + ".tmp" + std::to_string(static_cast<long>(::getpid()));
+  const auto failed = [&](const std::string& what) {
+    const std::string reason = std::strerror(errno);
+    ::unlink(tmp.c_str());
+    throw std::runtime_error(path.string() + ": " + what + " (" + reason + ")");
+  };
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) failed("cannot open for writing");
+  std::size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      ::close(fd);
+      failed("write error");
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0) {
+    ::close(fd);
+    failed("fsync failed");
+  }
+  if (::close(fd) != 0) failed("close failed");
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) failed("cannot move into place");
+  // The rename itself is durable once the folder is synced.
+  const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir >= 0) {
+    ::fsync(dir);
+    ::close(dir);
+  }
+}
+
+RegisterCheckpoint read_checkpoint(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    throw InputError(path.string() +
+                     ": no checkpoint to resume from (the run finished, see report.json, or "
+                     "this is not a sinew-register output folder)");
+  }
+  const nlohmann::json j = read_json_file(path.string());
+  const Reader r(path.string());
+  if (!j.is_object() || !j.contains("format") || j["format"] != kFormat)
+    r.fail("format", "is not '" + std::string(kFormat) + "'");
+  if (r.integer(r.at(j, "version", ""), "version") != kVersion)
+    r.fail("version", "is not " + std::to_string(kVersion));
+  RegisterCheckpoint c;
+  c.case_path = r.string(r.at(j, "case", ""), "case");
+  c.case_file = r.string(r.at(j, "case_file", ""), "case_file");
+  c.truth_path = r.string(r.at(j, "truth", ""), "truth");
+  c.truth_file = r.string(r.at(j, "truth_file", ""), "truth_file");
+  const nlohmann::json& max_iterations = r.at(j, "max_iterations", "");
+  if (!max_iterations.is_null())
+    c.max_iterations = static_cast<int>(r.integer(max_iterations, "max_iterations"));
+  c.resumes = static_cast<int>(r.integer(r.at(j, "resumes", ""), "resumes"));
+  c.identification = r.at(j, "identification", "");
+  if (!c.identification.is_object()) r.fail("identification", "is not an object");
+  const nlohmann::json& state = r.at(j, "state", "");
+  if (state.is_null()) return c;
+  offline::GaussNewtonCheckpoint s;
+  const std::string w = "state.";
+  const nlohmann::json& free_object = r.at(state, "free_object", w);
+  if (!free_object.is_boolean()) r.fail(w + "free_object", "is not a boolean");
+  s.free_object = free_object.get<bool>();
+  const nlohmann::json& next_stage = r.at(state, "next_stage", w);
+  if (!next_stage.is_null()) s.next_stage = r.stage(next_stage, w + "next_stage");
+  s.next_iteration =
+      static_cast<int>(r.integer(r.at(state, "next_iteration", w), w + "next_iteration"));
+  s.termination = r.termination(r.at(state, "termination", w), w + "termination");
+  s.initial_objective = r.real(r.at(state, "initial_objective", w), w + "initial_objective");
+  s.equilibrium_solves =
+      static_cast<int>(r.integer(r.at(state, "equilibrium_solves", w), w + "equilibrium_solves"));
+  s.seconds = r.real(r.at(state, "seconds", w), w + "seconds");
+  const nlohmann::json& iterations = r.at(state, "iterations", w);
+  if (!iterations.is_array()) r.fail(w + "iterations", "is not an array");
+  for (std::size_t i = 0; i < iterations.size(); ++i) {
+    s.iterations.push_back(
+        read_iteration(r, iterations[i], w + "iterations[" + std::to_string(i) + "]."));
+  }
+  s.s = r.vector(r.at(state, "s", w), w + "s");
+  s.x = r.vector(r.at(state, "x", w), w + "x");
+  c.state = std::move(s);
+  return c;
+}
+
+std::optional<std::string> identification_mismatch(const nlohmann::json& saved,
+                                                   const nlohmann::json& now) {
+  // The most telling difference first: a changed template shows in the mesh before it shows in
+  // the markers' embedding.
+  for (const char* key : {"mode", "tet_vertices", "tets", "mesh_hash", "attachments", "landmarks",
+                          "icp_markers", "markers_hash", "surface_hash"}) {
+    if (now.contains(key) && saved.contains(key) && saved[key] != now[key]) {
+      return std::string(key) + ": " + describe(saved[key]) + " in the checkpoint, " +
+             describe(now[key]) + " now";
+    }
+  }
+  for (const auto& [key, value] : now.items()) {
+    if (!saved.contains(key))
+      return key + ": missing in the checkpoint, " + describe(value) + " now";
+    if (saved[key] != value) {
+      if (value.is_object() && saved[key].is_object()) {
+        if (auto inner = identification_mismatch(saved[key], value)) return key + "." + *inner;
+      }
+      return key + ": " + describe(saved[key]) + " in the checkpoint, " + describe(value) + " now";
+    }
+  }
+  for (const auto& [key, value] : saved.items()) {
+    if (!now.contains(key)) return key + ": " + describe(value) + " in the checkpoint, none now";
+  }
+  return std::nullopt;
+}
+
+}  // namespace sinew::tools
