@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -990,6 +991,66 @@ bool write_off(const std::string& path, const SurfaceMesh& mesh, std::string* er
   } catch (const std::exception& e) {
     return fail_write(error, path + ": " + e.what());
   }
+}
+
+bool write_stl(const std::string& path, const SurfaceMesh& mesh, std::string* error) {
+  try {
+    if (!check_for_write(path, mesh, error)) return false;
+    std::string out(80, ' ');
+    out.replace(0, 28, "sinew surface (binary STL)  ");
+    const auto count = static_cast<std::uint32_t>(mesh.triangles.rows());
+    out.append(reinterpret_cast<const char*>(&count), 4);
+    auto put = [&](const Eigen::Vector3d& v) {
+      for (int i = 0; i < 3; ++i) {
+        const auto f = static_cast<float>(v[i]);
+        out.append(reinterpret_cast<const char*>(&f), 4);
+      }
+    };
+    for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t) {
+      const Eigen::Vector3d a = mesh.vertices.row(mesh.triangles(t, 0)).transpose();
+      const Eigen::Vector3d b = mesh.vertices.row(mesh.triangles(t, 1)).transpose();
+      const Eigen::Vector3d c = mesh.vertices.row(mesh.triangles(t, 2)).transpose();
+      const Eigen::Vector3d n = (b - a).cross(c - a);
+      put(n.norm() > 0.0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero());
+      put(a);
+      put(b);
+      put(c);
+      out.append(2, '\0');
+    }
+    return detail::write_file_atomically(path, out, error);
+  } catch (const std::exception& e) {
+    return fail_write(error, path + ": " + e.what());
+  }
+}
+
+bool write_ply(const std::string& path, const SurfaceMesh& mesh, std::string* error) {
+  try {
+    if (!check_for_write(path, mesh, error)) return false;
+    std::string out = "ply\nformat ascii 1.0\ncomment sinew surface\nelement vertex " +
+                      std::to_string(mesh.vertices.rows()) +
+                      "\nproperty double x\nproperty double y\nproperty double z\nelement face " +
+                      std::to_string(mesh.triangles.rows()) +
+                      "\nproperty list uchar int vertex_indices\nend_header\n";
+    append_vertices(out, mesh, "");
+    for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t)
+      out += "3 " + std::to_string(mesh.triangles(t, 0)) + " " +
+             std::to_string(mesh.triangles(t, 1)) + " " + std::to_string(mesh.triangles(t, 2)) +
+             "\n";
+    return detail::write_file_atomically(path, out, error);
+  } catch (const std::exception& e) {
+    return fail_write(error, path + ": " + e.what());
+  }
+}
+
+bool write_surface_mesh(const std::string& path, const SurfaceMesh& mesh, std::string* error) {
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".obj") return write_obj(path, mesh, error);
+  if (extension == ".off") return write_off(path, mesh, error);
+  if (extension == ".stl") return write_stl(path, mesh, error);
+  if (extension == ".ply") return write_ply(path, mesh, error);
+  return fail_write(error, path + ": unknown surface format '" + extension +
+                               "' (expected .obj, .off, .stl or .ply)");
 }
 
 }  // namespace sinew::offline::io

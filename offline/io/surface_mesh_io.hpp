@@ -102,4 +102,16 @@ bool write_obj(const std::string& path, const SurfaceMesh& mesh, std::string* er
 /// Writes an OFF ("OFF", "nv nf 0", vertices with %.17g, "3 a b c" 0-based). Atomic like write_obj.
 bool write_off(const std::string& path, const SurfaceMesh& mesh, std::string* error = nullptr);
 
+/// Writes a binary STL (float32 facets with their unit normals; the vertices are repeated per
+/// facet, as STL has no shared vertices). Atomic like write_obj.
+bool write_stl(const std::string& path, const SurfaceMesh& mesh, std::string* error = nullptr);
+
+/// Writes an ASCII PLY ("element vertex" as double x y z, "element face" as vertex_indices).
+/// Atomic like write_obj.
+bool write_ply(const std::string& path, const SurfaceMesh& mesh, std::string* error = nullptr);
+
+/// Writes in the format named by the path's extension (.obj, .off, .stl, .ply; case-insensitive).
+bool write_surface_mesh(const std::string& path, const SurfaceMesh& mesh,
+                        std::string* error = nullptr);
+
 }  // namespace sinew::offline::io

@@ -253,29 +253,13 @@ double radius_ratio(const std::array<Eigen::Vector3d, 4>& p) {
 }
 
 void fill_quality(const TetMesh& mesh, TetMesherSummary* summary) {
-  double min_angle = std::numeric_limits<double>::infinity();
-  double max_angle = 0.0;
-  double min_ratio = std::numeric_limits<double>::infinity();
-  double sum_ratio = 0.0;
-  double volume = 0.0;
-  for (Eigen::Index t = 0; t < mesh.tets.rows(); ++t) {
-    std::array<Eigen::Vector3d, 4> p;
-    for (int a = 0; a < 4; ++a) p[static_cast<std::size_t>(a)] = mesh.vertices.row(mesh.tets(t, a));
-    for (const double angle : dihedral_angles(p)) {
-      min_angle = std::min(min_angle, angle);
-      max_angle = std::max(max_angle, angle);
-    }
-    const double ratio = radius_ratio(p);
-    min_ratio = std::min(min_ratio, ratio);
-    sum_ratio += ratio;
-    volume += (p[1] - p[0]).dot((p[2] - p[0]).cross(p[3] - p[0])) / 6.0;
-  }
-  summary->tet_volume = volume;
+  const TetMeshQuality q = tet_mesh_quality(mesh);
+  summary->tet_volume = q.volume;
   if (mesh.tets.rows() == 0) return;
-  summary->min_dihedral_degrees = min_angle * 180.0 / kPi;
-  summary->max_dihedral_degrees = max_angle * 180.0 / kPi;
-  summary->min_radius_ratio = min_ratio;
-  summary->mean_radius_ratio = sum_ratio / static_cast<double>(mesh.tets.rows());
+  summary->min_dihedral_degrees = q.min_dihedral_degrees;
+  summary->max_dihedral_degrees = q.max_dihedral_degrees;
+  summary->min_radius_ratio = q.min_radius_ratio;
+  summary->mean_radius_ratio = q.mean_radius_ratio;
 }
 
 Eigen::Index count_boundary_faces(const TetMesh& mesh) {
@@ -733,6 +717,32 @@ TetMesherResult make_tet_mesh_from_image(const std::vector<float>& values,
   summary.num_boundary_faces = count_boundary_faces(result.mesh);
   fill_quality(result.mesh, &summary);
   return finish(TetMesherStatus::kOk, "");
+}
+
+TetMeshQuality tet_mesh_quality(const TetMesh& mesh) {
+  TetMeshQuality q;
+  double min_angle = std::numeric_limits<double>::infinity(), max_angle = 0.0;
+  double min_ratio = std::numeric_limits<double>::infinity(), sum_ratio = 0.0;
+  for (Eigen::Index t = 0; t < mesh.tets.rows(); ++t) {
+    std::array<Eigen::Vector3d, 4> p;
+    for (int a = 0; a < 4; ++a) p[static_cast<std::size_t>(a)] = mesh.vertices.row(mesh.tets(t, a));
+    for (const double angle : dihedral_angles(p)) {
+      min_angle = std::min(min_angle, angle);
+      max_angle = std::max(max_angle, angle);
+    }
+    const double ratio = radius_ratio(p);
+    min_ratio = std::min(min_ratio, ratio);
+    sum_ratio += ratio;
+    const double volume = (p[1] - p[0]).dot((p[2] - p[0]).cross(p[3] - p[0])) / 6.0;
+    q.volume += volume;
+    q.inverted_tets += volume <= 0.0;
+  }
+  if (mesh.tets.rows() == 0) return q;
+  q.min_dihedral_degrees = min_angle * 180.0 / kPi;
+  q.max_dihedral_degrees = max_angle * 180.0 / kPi;
+  q.min_radius_ratio = min_ratio;
+  q.mean_radius_ratio = sum_ratio / static_cast<double>(mesh.tets.rows());
+  return q;
 }
 
 }  // namespace sinew::offline

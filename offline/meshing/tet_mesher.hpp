@@ -172,4 +172,15 @@ TetMesherResult make_tet_mesh_from_image(const std::vector<float>& values,
                                          const Eigen::Vector3d& spacing, double iso,
                                          const TetMesherOptions& options = {});
 
+/// Shape quality of a tet mesh (the output's, or a deformed mesh's: seed 003 Fig. 17).
+struct TetMeshQuality {
+  double min_dihedral_degrees = 0.0;
+  double max_dihedral_degrees = 0.0;
+  double min_radius_ratio = 0.0;  ///< 3·r_in/R_circ, 1 for the regular tet
+  double mean_radius_ratio = 0.0;
+  double volume = 0.0;    ///< total signed volume
+  int inverted_tets = 0;  ///< tets with signed volume ≤ 0
+};
+TetMeshQuality tet_mesh_quality(const TetMesh& mesh);
+
 }  // namespace sinew::offline

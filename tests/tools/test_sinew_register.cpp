@@ -922,6 +922,21 @@ TEST(SinewRegister, DemoCaseMeetsItsKnownDeformation) {
   EXPECT_NE(r.out.find("truth: result vertices to"), std::string::npos) << r.out;
   EXPECT_LT(seconds, 120.0);
 
+  // Outputs to look at: the histogram and convergence PNGs (PNG signature, not empty), the tets'
+  // quality before and after (Fig. 17), the stretch ratio in result.vtu.
+  for (const char* name : {"marker_errors.png", "convergence.png"}) {
+    const std::string png = read_text(dir / "out" / name);
+    ASSERT_GT(png.size(), 2000u) << name;
+    EXPECT_EQ(png.substr(1, 3), "PNG") << name;
+  }
+  const nlohmann::json& quality = report.at("mesh_quality");
+  EXPECT_EQ(quality.at("result").at("inverted_tets").get<int>(), 0);
+  EXPECT_GT(quality.at("template").at("min_dihedral_degrees").get<double>(), 5.0);
+  EXPECT_GT(quality.at("result").at("min_dihedral_degrees").get<double>(), 5.0);
+  EXPECT_NE(quality.at("result").at("min_dihedral_degrees"),
+            quality.at("template").at("min_dihedral_degrees"));  // the deformed tets, not a copy
+  EXPECT_NE(read_text(dir / "out" / "result.vtu").find("Name=\"stretch_ratio\""), std::string::npos);
+
   // A --truth file that cannot be read is an input error: one line, exit 2, nothing written.
   const auto bad =
       run_tool(kTool + " --case " + (dir / "case/case.json").string() + " --out " +

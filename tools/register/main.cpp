@@ -3,9 +3,13 @@
 // template's surface vertices in it, run the staged Gauss–Newton registration and write
 //   OUTDIR/result_surface.obj  the deformed template surface (same vertices and triangles as the
 //                              template surface; for a tet-mesh template, its boundary)
-//   OUTDIR/result.vtu          the deformed tet mesh with per-tet Fp (9), principal stretches (3)
-//                              and det Fp as cell data, for ParaView
+//   OUTDIR/result.vtu          the deformed tet mesh with per-tet Fp (9), principal stretches (3),
+//                              their ratio (largest / smallest) and det Fp as cell data (ParaView)
+//   OUTDIR/result_surface.EXT  the same in the template's own format when it is .off/.stl/.ply
 //   OUTDIR/report.json         per-iteration log, totals, termination, inputs and mesh quality
+//                              (smallest dihedral angles of the template and of the result)
+//   OUTDIR/marker_errors.png   histogram of the final marker errors (seed 003 Fig. 16)
+//   OUTDIR/convergence.png     objective and marker errors per iteration (Fig. 9)
 //
 //   sinew-register --case case.json --out OUTDIR [--quiet] [--max-iterations N] [--truth FILE]
 //   sinew-register --resume OUTDIR [--quiet]
@@ -35,6 +39,7 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -62,6 +67,7 @@
 #include "tools/register/checkpoint_file.hpp"
 #include "tools/register/demo_case.hpp"
 #include "tools/register/marker_checks.hpp"
+#include "tools/register/plots.hpp"
 #include "tools/register/surface_distance.hpp"
 #include "tools/register/template_surface.hpp"
 
@@ -479,7 +485,10 @@ int run(const RunRequest& request) {
   // first, so that a run killed from now on leaves nothing that looks finished (report.json is
   // written last); the checkpoint marks the run as unfinished and resumable from the start.
   prepare_output_dir(out);
-  for (const fs::path& stale : {out.report(), out.surface(), out.vtu()}) {
+  for (const fs::path& stale :
+       {out.report(), out.surface(), out.vtu(), out.dir / "result_surface.off",
+        out.dir / "result_surface.stl", out.dir / "result_surface.ply",
+        out.dir / "marker_errors.png", out.dir / "convergence.png"}) {
     std::error_code ec;
     fs::remove(stale, ec);
   }
@@ -635,6 +644,19 @@ int run(const RunRequest& request) {
     if (!offline::io::write_obj(out.surface().string(), deformed, &error))
       throw std::runtime_error(error);
     written.push_back(out.surface().string());
+    // Also in the template's own format, for the tools that read it.
+    {
+      std::string extension = fs::path(c.template_path).extension().string();
+      for (char& ch : extension)
+        ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+      if (!c.template_is_tet_mesh &&
+          (extension == ".off" || extension == ".stl" || extension == ".ply")) {
+        const fs::path same = out.dir / ("result_surface" + extension);
+        if (!offline::io::write_surface_mesh(same.string(), deformed, &error))
+          throw std::runtime_error(error);
+        written.push_back(same.string());
+      }
+    }
 
     if (truth) {
       const tools::SurfaceDistanceStats to_truth =
@@ -660,20 +682,70 @@ int run(const RunRequest& request) {
     mesh.vertices = frame.to_user(positions(result.x));
     mesh.tets = tets;
     Eigen::MatrixXd Fp(tets.rows(), 9), stretches(tets.rows(), 3);
-    Eigen::VectorXd det(tets.rows());
+    Eigen::VectorXd det(tets.rows()), ratio(tets.rows());
     for (Eigen::Index t = 0; t < tets.rows(); ++t) {
       const Eigen::Matrix3d F = offline::plastic_strain_matrix(result.s.segment<6>(6 * t));
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) Fp(t, 3 * i + j) = F(i, j);
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(F, Eigen::EigenvaluesOnly);
       stretches.row(t) = eig.eigenvalues().transpose();
+      ratio[t] = eig.eigenvalues().maxCoeff() / eig.eigenvalues().minCoeff();  // Fig. 1 e
       det[t] = F.determinant();
     }
-    if (!offline::write_vtu_cell_fields(
-            out.vtu().string(), mesh,
-            {{"det_Fp", det}, {"Fp", Fp}, {"principal_stretches", stretches}}, &error))
+    // Fig. 17: the tets' shape before (the template mesh) and after (deformed).
+    offline::TetMesh rest_mesh;
+    rest_mesh.vertices = frame.to_user(rest);
+    rest_mesh.tets = tets;
+    auto quality_json = [](const offline::TetMeshQuality& q) {
+      return nlohmann::json{{"min_dihedral_degrees", q.min_dihedral_degrees},
+                            {"max_dihedral_degrees", q.max_dihedral_degrees},
+                            {"min_radius_ratio", q.min_radius_ratio},
+                            {"mean_radius_ratio", q.mean_radius_ratio},
+                            {"inverted_tets", q.inverted_tets}};
+    };
+    const offline::TetMeshQuality before = offline::tet_mesh_quality(rest_mesh);
+    const offline::TetMeshQuality after = offline::tet_mesh_quality(mesh);
+    report["mesh_quality"] = {{"template", quality_json(before)}, {"result", quality_json(after)}};
+    log.line(
+        "tet quality: smallest dihedral angle {:.1f} deg in the template, {:.1f} deg in the "
+        "result ({} inverted tets)",
+        before.min_dihedral_degrees, after.min_dihedral_degrees, after.inverted_tets);
+    if (!offline::write_vtu_cell_fields(out.vtu().string(), mesh,
+                                        {{"det_Fp", det},
+                                         {"Fp", Fp},
+                                         {"principal_stretches", stretches},
+                                         {"stretch_ratio", ratio}},
+                                        &error))
       throw std::runtime_error(error);
     written.push_back(out.vtu().string());
+
+    // Figs. 16 and 9: the final marker errors' histogram and the convergence plot.
+    std::vector<double> marker_errors;
+    if (!constraints.icp_markers.empty()) {
+      closest->update(result.x);
+      for (const Eigen::Vector3d& z : constraints.icp_markers) {
+        const Eigen::Vector3d p = offline::embedded_position(tets, closest->closest(z), result.x);
+        marker_errors.push_back((p - z).norm() * frame.scale);
+      }
+    } else {
+      const auto& list =
+          constraints.landmarks.empty() ? constraints.attachments : constraints.landmarks;
+      for (const offline::PointConstraint& pc : list) {
+        marker_errors.push_back(
+            (offline::embedded_position(tets, pc.point, result.x) - pc.target).norm() *
+            frame.scale);
+      }
+    }
+    const fs::path histogram = out.dir / "marker_errors.png",
+                   convergence = out.dir / "convergence.png";
+    const std::string unit_name = unit.empty() ? "template units" : unit;
+    if (!tools::write_error_histogram_png(histogram.string(), marker_errors, unit_name, &error) ||
+        !tools::write_convergence_png(convergence.string(), summary.iterations, frame.scale,
+                                      unit_name, &error)) {
+      throw std::runtime_error(error);
+    }
+    written.push_back(histogram.string());
+    written.push_back(convergence.string());
   }
   phases["writing"] = seconds_since(start);
   report["outputs"] = written;

@@ -267,6 +267,32 @@ TEST(SurfaceMeshIo, OffRoundTripIsExactAndExtensionIsCaseInsensitive) {
   expect_same_mesh(read_surface_mesh(path.string()), m);
 }
 
+TEST(SurfaceMeshIo, StlAndPlyWritersRoundTrip) {
+  const SurfaceMesh m = awkward_box();
+  std::string error;
+  // PLY (ASCII, %.17g) is exact; binary STL stores float32 and repeats vertices per facet, which
+  // the reader welds back into the same indexed mesh.
+  const fs::path ply = test_dir() / "box_written.ply";
+  ASSERT_TRUE(write_surface_mesh(ply.string(), m, &error)) << error;
+  expect_same_mesh(read_surface_mesh(ply.string()), m);
+  // float32: a box of ordinary size (the awkward one's 1e-9 extent would collapse).
+  const SurfaceMesh plain = box(0.1, -0.3, 0.2, 1.5, 2.5, 3.5);
+  const fs::path stl = test_dir() / "box_written.STL";
+  ASSERT_TRUE(write_surface_mesh(stl.string(), plain, &error)) << error;
+  const auto r = read_surface_mesh(stl.string());
+  ASSERT_TRUE(r.mesh.has_value()) << "error: " << r.error;
+  ASSERT_EQ(r.mesh->vertices.rows(), plain.vertices.rows());
+  ASSERT_EQ(r.mesh->triangles.rows(), plain.triangles.rows());
+  for (Eigen::Index f = 0; f < plain.triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d expected = plain.vertices.row(plain.triangles(f, k)).transpose();
+      const Eigen::Vector3d got = r.mesh->vertices.row(r.mesh->triangles(f, k)).transpose();
+      EXPECT_LT((got - expected).norm(), 1e-6 * (1.0 + expected.norm()));
+    }
+  EXPECT_FALSE(write_surface_mesh((test_dir() / "box.xyz").string(), m, &error));
+  EXPECT_NE(error.find("unknown surface format '.xyz'"), std::string::npos) << error;
+}
+
 TEST(SurfaceMeshIo, WritersAreAtomicAndLeaveNoTemporaryFiles) {
   const fs::path dir = test_dir();
   const SurfaceMesh m = box(0, 0, 0, 1, 2, 3);
