@@ -935,7 +935,8 @@ TEST(SinewRegister, DemoCaseMeetsItsKnownDeformation) {
   EXPECT_GT(quality.at("result").at("min_dihedral_degrees").get<double>(), 5.0);
   EXPECT_NE(quality.at("result").at("min_dihedral_degrees"),
             quality.at("template").at("min_dihedral_degrees"));  // the deformed tets, not a copy
-  EXPECT_NE(read_text(dir / "out" / "result.vtu").find("Name=\"stretch_ratio\""), std::string::npos);
+  EXPECT_NE(read_text(dir / "out" / "result.vtu").find("Name=\"stretch_ratio\""),
+            std::string::npos);
 
   // A --truth file that cannot be read is an input error: one line, exit 2, nothing written.
   const auto bad =
