@@ -956,3 +956,51 @@ TEST(SinewRegister, DemoCaseMeetsItsKnownDeformation) {
 }
 
 }  // namespace
+
+// §4.3: a surface embedded in the template is carried along. The demo's own template surface with
+// texture coordinates and normals added comes out with exactly the result surface's vertices, its
+// vt lines and faces kept and its (stale) normals dropped; a surface vertex far outside the
+// template is an input error before any work.
+TEST(SinewRegister, TransferredSurfaceKeepsItsTextureAndFollowsTheResult) {
+  const auto dir = scratch_dir("sinew_register_transfer");
+  ASSERT_EQ(run_tool(kTool + " --make-demo-case " + (dir / "case").string(), dir).exit_status, 0);
+  std::string hires = read_text(dir / "case" / "template.obj");
+  hires = "mtllib liver.mtl\nvt 0.25 0.75\nvn 0 0 1\n" + hires;
+  write_text(dir / "case" / "hires.obj", hires);
+  auto c = nlohmann::json::parse(read_text(dir / "case" / "case.json"));
+  c["transfer"] = {"hires.obj"};
+  write_text(dir / "case" / "case.json", c.dump(1));
+  const auto r = run_tool(kTool + " --quiet --case " + (dir / "case/case.json").string() +
+                              " --out " + (dir / "out").string(),
+                          dir);
+  ASSERT_EQ(r.exit_status, 0) << r.err;
+  const std::string moved = read_text(dir / "out" / "transfer_hires.obj");
+  EXPECT_NE(moved.find("mtllib liver.mtl\nvt 0.25 0.75\n"), std::string::npos);
+  EXPECT_EQ(moved.find("\nvn "), std::string::npos);
+  const auto transferred =
+      sinew::offline::io::read_surface_mesh((dir / "out" / "transfer_hires.obj").string());
+  const auto result =
+      sinew::offline::io::read_surface_mesh((dir / "out" / "result_surface.obj").string());
+  ASSERT_TRUE(transferred.mesh && result.mesh) << transferred.error << result.error;
+  ASSERT_EQ(transferred.mesh->vertices.rows(), result.mesh->vertices.rows());
+  EXPECT_EQ(transferred.mesh->triangles, result.mesh->triangles);
+  const double moved_by = (result.mesh->vertices - sinew::offline::io::read_surface_mesh(
+                                                       (dir / "case" / "template.obj").string())
+                                                       .mesh->vertices)
+                              .cwiseAbs()
+                              .maxCoeff();
+  EXPECT_GT(moved_by, 1.0);  // the demo deforms by millimetres: the transfer is not a copy
+  EXPECT_LT((transferred.mesh->vertices - result.mesh->vertices).cwiseAbs().maxCoeff(), 1e-9);
+
+  // A vertex 1 m away: one line naming the file and the vertex, exit 2, no OUTDIR.
+  std::string far = read_text(dir / "case" / "hires.obj");
+  const auto first_v = far.find("\nv ") + 1;
+  far.replace(first_v, far.find('\n', first_v) - first_v, "v 1000 0 0");
+  write_text(dir / "case" / "hires.obj", far);
+  const auto bad = run_tool(kTool + " --case " + (dir / "case/case.json").string() + " --out " +
+                                (dir / "out_far").string(),
+                            dir);
+  EXPECT_EQ(bad.exit_status, 2);
+  EXPECT_NE(bad.err.find("hires.obj: vertex 0 is"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir / "out_far"));
+}

@@ -221,8 +221,8 @@ bool is_tet_mesh_path(const std::string& path) {
 RegistrationCase read_registration_case(const std::string& path) {
   const nlohmann::json doc = read_json_file(path);
   const JsonCursor root(doc, path);
-  root.expect_keys(
-      {"template", "units", "mesh", "attachments", "landmarks", "icp_markers", "weights", "stop"});
+  root.expect_keys({"template", "units", "mesh", "attachments", "landmarks", "icp_markers",
+                    "weights", "stop", "transfer"});
   RegistrationCase c;
   c.case_path = path;
   c.template_path = resolve(path, root.at("template"));
@@ -258,6 +258,12 @@ RegistrationCase read_registration_case(const std::string& path) {
   if (root.has("icp_markers"))
     c.icp_markers = markers.points(root.at("icp_markers"), &c.icp_markers_source);
 
+  if (root.has("transfer")) {
+    const JsonCursor t = root.at("transfer");
+    if (!t.value().is_array()) t.fail("must be a list of surface files");
+    for (std::size_t i = 0; i < t.array_size(); ++i)
+      c.transfer_paths.push_back(resolve(path, t.at(i)));
+  }
   if (root.has("weights")) {
     const JsonCursor w = root.at("weights");
     w.expect_keys({"alpha", "beta", "attachment_stiffness"});

@@ -20,6 +20,7 @@
 ///                                   // none: a free object (§3.6), >= 3 landmarks/markers
 ///   "landmarks": PAIRS,             // optional: points with known correspondence
 ///   "icp_markers": POINTS,          // optional: scan points without correspondence (ICP)
+///   "transfer": ["hires.obj"],      // optional: surfaces in the template's frame to carry along
 ///   "weights": {                    // optional; in the normalised frame (see below)
 ///     "alpha": 1e5, "beta": 1e4 or 0 (see RegistrationWeights), "attachment_stiffness": 10
 ///   },
@@ -103,6 +104,9 @@ struct RegistrationCase {
   PointPairSet landmarks;          ///< empty when absent
   Eigen::MatrixXd icp_markers;     ///< #M by 3 (0 rows when absent)
   std::string icp_markers_source;  ///< as PointPairSet::source
+  /// Surfaces in the template's frame carried along by the deformation (seed 003 §4.3, the
+  /// textured liver): written as OUTDIR/transfer_<name> (tools/register/transfer.hpp).
+  std::vector<std::string> transfer_paths;
   std::string coordinate_system;   ///< "RAS"/"LPS" when a marker file said so, else ""
   std::vector<std::string> notes;  ///< things the user should know (conversions, skipped points)
   RegistrationWeights weights;

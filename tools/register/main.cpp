@@ -70,6 +70,7 @@
 #include "tools/register/plots.hpp"
 #include "tools/register/surface_distance.hpp"
 #include "tools/register/template_surface.hpp"
+#include "tools/register/transfer.hpp"
 
 namespace {
 
@@ -423,6 +424,25 @@ int run(const RunRequest& request) {
       surface_worst * frame.scale, u);
   inputs["embedding_max_distance"] = worst * frame.scale;
   inputs["surface_embedding_max_distance"] = surface_worst * frame.scale;
+  // Surfaces carried along (§4.3): every vertex embedded now, so a bad one stops the run before
+  // any work (and before OUTDIR exists).
+  std::vector<std::vector<offline::EmbeddedPoint>> transfer_points(c.transfer_paths.size());
+  for (std::size_t k = 0; k < c.transfer_paths.size(); ++k) {
+    const std::string& path = c.transfer_paths[k];
+    auto& points = transfer_points[k];
+    tools::transfer_surface(path, "", [&](const Eigen::Vector3d& p, long index) {
+      const Eigen::MatrixXd in_frame = frame.to_frame(p.transpose());
+      const offline::Embedding e = locator->locate(in_frame.row(0).transpose());
+      if (!e.ok() || e.distance > kMaxEmbeddingDistance) {
+        throw tools::InputError(fmt::format(
+            "{}: vertex {} is {:.4g}{} from the template mesh ({:.1f}% of its diagonal); a "
+            "transferred surface must lie in the template",
+            path, index, e.distance * frame.scale, u, 100 * e.distance));
+      }
+      points.push_back(e.point);
+      return p;
+    });
+  }
 
   // Unit material: μ = 1 (model), ν = 0.4 (E = 2μ_L(1 + ν) with μ_L = 3/4).
   common::StableNeoHookeanParameters material_parameters;
@@ -489,6 +509,11 @@ int run(const RunRequest& request) {
        {out.report(), out.surface(), out.vtu(), out.dir / "result_surface.off",
         out.dir / "result_surface.stl", out.dir / "result_surface.ply",
         out.dir / "marker_errors.png", out.dir / "convergence.png"}) {
+    std::error_code ec;
+    fs::remove(stale, ec);
+  }
+  for (const std::string& transferred : c.transfer_paths) {
+    const fs::path stale = out.dir / ("transfer_" + fs::path(transferred).filename().string());
     std::error_code ec;
     fs::remove(stale, ec);
   }
@@ -721,6 +746,19 @@ int run(const RunRequest& request) {
                                         &error))
       throw std::runtime_error(error);
     written.push_back(out.vtu().string());
+
+    for (std::size_t k = 0; k < c.transfer_paths.size(); ++k) {
+      const fs::path target =
+          out.dir / ("transfer_" + fs::path(c.transfer_paths[k]).filename().string());
+      tools::transfer_surface(c.transfer_paths[k], target.string(),
+                              [&](const Eigen::Vector3d&, long index) -> Eigen::Vector3d {
+                                const Eigen::Vector3d q = offline::embedded_position(
+                                    tets, transfer_points[k][static_cast<std::size_t>(index)],
+                                    result.x);
+                                return frame.to_user(q.transpose()).row(0).transpose();
+                              });
+      written.push_back(target.string());
+    }
 
     // Figs. 16 and 9: the final marker errors' histogram and the convergence plot.
     std::vector<double> marker_errors;

@@ -1,0 +1,63 @@
+#include "tools/register/transfer.hpp"
+
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "offline/io/surface_mesh_io.hpp"
+#include "tools/io/json_file.hpp"
+
+namespace sinew::tools {
+namespace fs = std::filesystem;
+
+long transfer_surface(const std::string& in_path, const std::string& out_path,
+                      const PointTransfer& transfer) {
+  std::string extension = fs::path(in_path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  long moved = 0;
+  if (extension != ".obj") {
+    auto read = offline::io::read_surface_mesh(in_path);
+    if (!read.mesh) throw InputError(read.error);
+    for (Eigen::Index v = 0; v < read.mesh->vertices.rows(); ++v) {
+      read.mesh->vertices.row(v) =
+          transfer(read.mesh->vertices.row(v).transpose(), moved++).transpose();
+    }
+    std::string error;
+    if (!out_path.empty() && !offline::io::write_surface_mesh(out_path, *read.mesh, &error))
+      throw InputError(error);
+    return moved;
+  }
+  std::ifstream in(in_path);
+  if (!in) throw InputError(in_path + ": cannot open file for reading");
+  std::ostringstream out;
+  out.precision(17);
+  std::string line;
+  for (long number = 1; std::getline(in, line); ++number) {
+    if (line.rfind("vn", 0) == 0) continue;  // normals no longer match the deformed surface
+    if (line.size() > 2 && line[0] == 'v' && std::isspace(static_cast<unsigned char>(line[1]))) {
+      std::istringstream s(line.substr(2));
+      Eigen::Vector3d p;
+      if (!(s >> p.x() >> p.y() >> p.z()) || !p.allFinite()) {
+        throw InputError(in_path + ":" + std::to_string(number) +
+                         ": expected 'v x y z' with finite numbers");
+      }
+      const Eigen::Vector3d q = transfer(p, moved++);
+      out << "v " << q.x() << " " << q.y() << " " << q.z() << "\n";
+    } else {
+      out << line << "\n";
+    }
+  }
+  if (out_path.empty()) return moved;
+  const std::string tmp = out_path + ".tmp";
+  {
+    std::ofstream file(tmp, std::ios::binary);
+    file << out.str();
+    if (!file) throw InputError(out_path + ": cannot write");
+  }
+  fs::rename(tmp, out_path);
+  return moved;
+}
+
+}  // namespace sinew::tools
