@@ -59,7 +59,10 @@ class Registration {
         constraints_(constraints),
         closest_point_(closest_point),
         options_(options),
-        free_(springs.size() == 0) {}
+        free_(springs.size() == 0) {
+    const Eigen::MatrixXd rest = rest_matrix(energy_);
+    diagonal_ = (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
+  }
 
   Eigen::VectorXd s;
   Eigen::VectorXd x;
@@ -242,10 +245,7 @@ class Registration {
   RigidNullspaceSolver free_tangent_;
   std::optional<RigidStabilisation> stabilisation_;
   RigidFrame frame_;
-  double diagonal_ = 1.0;
-
- public:
-  void set_diagonal(double diagonal) { diagonal_ = diagonal; }
+  double diagonal_ = 1.0;  // of the template's bounding box: the scale of "no rigid motion left"
 };
 
 // NLopt's C callback for the constant-s fit.
@@ -658,10 +658,6 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
                  laplacian.matrix, constraints, closest_point, options);
   r.s = result.s;
   r.x = result.x;
-  {
-    const Eigen::MatrixXd rest = rest_matrix(energy_in);
-    r.set_diagonal((rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm());
-  }
   std::vector<RegistrationStage> stages;
   if (!free) stages.push_back(RegistrationStage::kAttachments);
   if (!constraints.landmarks.empty()) stages.push_back(RegistrationStage::kLandmarks);
