@@ -685,11 +685,9 @@ EquilibriumSummary EquilibriumSolver::solve_ipopt(const Eigen::Ref<const Eigen::
   const Eigen::VectorXd x0 = x;
   const Eigen::Ref<const Eigen::VectorXd> x0_ref(x0);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = new Ipopt::IpoptApplication();
-  Ipopt::SmartPtr<detail::CaptureJournal> journal;
   Ipopt::SmartPtr<detail::EquilibriumIpoptProblem> problem =
       new detail::EquilibriumIpoptProblem(this, &s, &x0_ref);
-  Ipopt::ApplicationReturnStatus status = Ipopt::Internal_Error;
-  try {
+  {
     Ipopt::SmartPtr<Ipopt::OptionsList> o = app->Options();
     o->SetIntegerValue("print_level", options_.ipopt_print_level);
     o->SetStringValue("sb", "yes");  // no banner
@@ -704,33 +702,14 @@ EquilibriumSummary EquilibriumSolver::solve_ipopt(const Eigen::Ref<const Eigen::
     o->SetNumericValue("acceptable_dual_inf_tol", 1e20);
     o->SetIntegerValue("acceptable_iter", 5);
     o->SetStringValue("hessian_approximation", "exact");
-    if (options_.ipopt_derivative_test != IpoptDerivativeTest::kNone) {
-      o->SetStringValue("derivative_test",
-                        options_.ipopt_derivative_test == IpoptDerivativeTest::kFirstOrder
-                            ? "first-order"
-                            : "second-order");
-      o->SetNumericValue("derivative_test_tol", options_.ipopt_derivative_test_tolerance);
-      o->SetNumericValue("derivative_test_perturbation",
-                         options_.ipopt_derivative_test_perturbation);
-      o->SetNumericValue("point_perturbation_radius", 0.0);  // check at x0 itself
-    }
-    status = app->Initialize();
-    if (status == Ipopt::Solve_Succeeded) {
-      if (options_.ipopt_derivative_test != IpoptDerivativeTest::kNone) {
-        journal = new detail::CaptureJournal();
-        // Ipopt 3.11.9 prints the checker's verdict above J_SUMMARY: capture up to J_ITERSUMMARY.
-        journal->SetAllPrintLevels(Ipopt::J_ITERSUMMARY);
-        app->Jnlst()->AddJournal(Ipopt::GetRawPtr(journal));
-      }
-      status = app->OptimizeTNLP(Ipopt::GetRawPtr(problem));
-    }
-  } catch (...) {
-    status = Ipopt::NonIpopt_Exception_Thrown;
   }
+  const detail::IpoptRun run = detail::run_ipopt(
+      *app, Ipopt::GetRawPtr(problem), options_.ipopt_derivative_test,
+      options_.ipopt_derivative_test_tolerance, options_.ipopt_derivative_test_perturbation);
+  const Ipopt::ApplicationReturnStatus status = run.status;
   summary.ipopt_return_code = static_cast<int>(status);
-  if (Ipopt::IsValid(journal))
-    summary.derivative_test_errors = detail::parse_derivative_test(journal->text());
-  if (Ipopt::IsValid(app->Statistics())) summary.iterations = app->Statistics()->IterationCount();
+  summary.derivative_test_errors = run.derivative_test_errors;
+  if (run.iterations) summary.iterations = *run.iterations;
 
   // Keep Ipopt's final point only if it is a valid state no worse than x0.
   double energy = 0.0;

@@ -188,9 +188,7 @@ FreeEquilibriumSummary solve_free_equilibrium(const PlasticElasticEnergy& energy
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = new Ipopt::IpoptApplication();
   Ipopt::SmartPtr<FreeEquilibriumProblem> problem =
       new FreeEquilibriumProblem(*energy, stabilisation, frame, s, Eigen::VectorXd(x));
-  Ipopt::SmartPtr<detail::CaptureJournal> journal;
-  Ipopt::ApplicationReturnStatus status = Ipopt::Internal_Error;
-  try {
+  {
     Ipopt::SmartPtr<Ipopt::OptionsList> o = app->Options();
     o->SetIntegerValue("print_level", options.print_level);
     o->SetStringValue("sb", "yes");
@@ -200,31 +198,14 @@ FreeEquilibriumSummary solve_free_equilibrium(const PlasticElasticEnergy& energy
     o->SetNumericValue("tol", options.force_tolerance);
     o->SetNumericValue("constr_viol_tol", options.constraint_tolerance);
     o->SetStringValue("hessian_approximation", "exact");
-    if (options.derivative_test != IpoptDerivativeTest::kNone) {
-      o->SetStringValue("derivative_test",
-                        options.derivative_test == IpoptDerivativeTest::kFirstOrder
-                            ? "first-order"
-                            : "second-order");
-      o->SetNumericValue("derivative_test_tol", options.derivative_test_tolerance);
-      o->SetNumericValue("derivative_test_perturbation", options.derivative_test_perturbation);
-      o->SetNumericValue("point_perturbation_radius", 0.0);
-    }
-    status = app->Initialize();
-    if (status == Ipopt::Solve_Succeeded) {
-      if (options.derivative_test != IpoptDerivativeTest::kNone) {
-        journal = new detail::CaptureJournal();
-        journal->SetAllPrintLevels(Ipopt::J_ITERSUMMARY);
-        app->Jnlst()->AddJournal(Ipopt::GetRawPtr(journal));
-      }
-      status = app->OptimizeTNLP(Ipopt::GetRawPtr(problem));
-    }
-  } catch (...) {
-    status = Ipopt::NonIpopt_Exception_Thrown;
   }
+  const detail::IpoptRun run =
+      detail::run_ipopt(*app, Ipopt::GetRawPtr(problem), options.derivative_test,
+                        options.derivative_test_tolerance, options.derivative_test_perturbation);
+  const Ipopt::ApplicationReturnStatus status = run.status;
   summary.ipopt_return_code = static_cast<int>(status);
-  if (Ipopt::IsValid(journal))
-    summary.derivative_test_errors = detail::parse_derivative_test(journal->text());
-  if (Ipopt::IsValid(app->Statistics())) summary.iterations = app->Statistics()->IterationCount();
+  summary.derivative_test_errors = run.derivative_test_errors;
+  if (run.iterations) summary.iterations = *run.iterations;
   x = problem->x_final();
 
   PlasticEnergyRequest request;

@@ -1,12 +1,16 @@
 #pragma once
 /// Ipopt helpers shared by the equilibrium solvers (offline/equilibrium.cpp,
-/// offline/free_equilibrium.cpp): a journal that captures Ipopt's messages, and the error count
-/// of Ipopt's derivative checker read from them. Includes Ipopt: for those .cpp files only.
+/// offline/free_equilibrium.cpp): one Ipopt run with the derivative checker's verdict captured
+/// from Ipopt's messages. Includes Ipopt: for those .cpp files only.
 
+#include <IpIpoptApplication.hpp>
 #include <IpJournalist.hpp>
+#include <IpTNLP.hpp>
 #include <cstdarg>
 #include <optional>
 #include <string>
+
+#include "offline/equilibrium.hpp"
 
 namespace sinew::offline::detail {
 
@@ -39,5 +43,17 @@ class CaptureJournal : public Ipopt::Journal {
 // The error count of Ipopt's derivative checker from its messages, if it reported one: its
 // verdict line, or else the number of flagged entries (lines starting with "*").
 std::optional<int> parse_derivative_test(const std::string& text);
+
+struct IpoptRun {
+  Ipopt::ApplicationReturnStatus status = Ipopt::Internal_Error;
+  std::optional<int> derivative_test_errors;  ///< when the checker ran
+  std::optional<int> iterations;
+};
+
+/// Runs problem with app, whose other options the caller has set: the derivative checker at the
+/// start point when test is not kNone (its verdict read from a capturing journal), Initialize,
+/// OptimizeTNLP. Exceptions become NonIpopt_Exception_Thrown.
+IpoptRun run_ipopt(Ipopt::IpoptApplication& app, Ipopt::TNLP* problem, IpoptDerivativeTest test,
+                   double test_tolerance, double test_perturbation);
 
 }  // namespace sinew::offline::detail

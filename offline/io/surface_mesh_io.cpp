@@ -851,6 +851,13 @@ void append_vertices(std::string& out, const SurfaceMesh& mesh, const char* pref
   }
 }
 
+// "3 a b c" lines, 0-based: the face lists of OFF and ASCII PLY.
+void append_counted_triangles(std::string& out, const SurfaceMesh& mesh) {
+  for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t)
+    out += "3 " + std::to_string(mesh.triangles(t, 0)) + " " +
+           std::to_string(mesh.triangles(t, 1)) + " " + std::to_string(mesh.triangles(t, 2)) + "\n";
+}
+
 }  // namespace
 
 SurfaceMeshReadResult read_surface_mesh(const std::string& path,
@@ -983,10 +990,7 @@ bool write_off(const std::string& path, const SurfaceMesh& mesh, std::string* er
     out.reserve(static_cast<std::size_t>(mesh.vertices.rows()) * 60 +
                 static_cast<std::size_t>(mesh.triangles.rows()) * 24);
     append_vertices(out, mesh, "");
-    for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t)
-      out += "3 " + std::to_string(mesh.triangles(t, 0)) + " " +
-             std::to_string(mesh.triangles(t, 1)) + " " + std::to_string(mesh.triangles(t, 2)) +
-             "\n";
+    append_counted_triangles(out, mesh);
     return detail::write_file_atomically(path, out, error);
   } catch (const std::exception& e) {
     return fail_write(error, path + ": " + e.what());
@@ -1032,10 +1036,7 @@ bool write_ply(const std::string& path, const SurfaceMesh& mesh, std::string* er
                       std::to_string(mesh.triangles.rows()) +
                       "\nproperty list uchar int vertex_indices\nend_header\n";
     append_vertices(out, mesh, "");
-    for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t)
-      out += "3 " + std::to_string(mesh.triangles(t, 0)) + " " +
-             std::to_string(mesh.triangles(t, 1)) + " " + std::to_string(mesh.triangles(t, 2)) +
-             "\n";
+    append_counted_triangles(out, mesh);
     return detail::write_file_atomically(path, out, error);
   } catch (const std::exception& e) {
     return fail_write(error, path + ": " + e.what());

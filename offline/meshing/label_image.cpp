@@ -108,6 +108,38 @@ std::vector<Eigen::Vector3d> farthest_point_selection(const std::vector<Eigen::V
   return chosen;
 }
 
+std::vector<Eigen::Vector3d> sample_surface_points(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                                   const Eigen::Ref<const Eigen::MatrixXi>& F,
+                                                   int count, unsigned seed) {
+  auto corner = [&](Eigen::Index f, int k) -> Eigen::Vector3d {
+    return V.row(F(f, k)).transpose();
+  };
+  std::vector<double> cumulative;
+  double total = 0.0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    total += 0.5 * (corner(f, 1) - corner(f, 0)).cross(corner(f, 2) - corner(f, 0)).norm();
+    cumulative.push_back(total);
+  }
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Eigen::Vector3d> points;
+  if (F.rows() == 0) return points;
+  points.reserve(static_cast<std::size_t>(std::max(count, 0)));
+  for (int k = 0; k < count; ++k) {
+    const auto f = static_cast<Eigen::Index>(
+        std::lower_bound(cumulative.begin(), cumulative.end(), u(rng) * total) -
+        cumulative.begin());
+    double r1 = u(rng), r2 = u(rng);
+    if (r1 + r2 > 1.0) {  // reflect into the triangle
+      r1 = 1.0 - r1;
+      r2 = 1.0 - r2;
+    }
+    points.push_back(corner(f, 0) + r1 * (corner(f, 1) - corner(f, 0)) +
+                     r2 * (corner(f, 2) - corner(f, 0)));
+  }
+  return points;
+}
+
 std::optional<std::vector<Eigen::Vector3d>> sample_label_boundary(const io::VolumeImage& image,
                                                                   const LabelMeshOptions& options,
                                                                   int count, unsigned seed,
@@ -121,35 +153,9 @@ std::optional<std::vector<Eigen::Vector3d>> sample_label_boundary(const io::Volu
   if (!meshed.summary.ok()) return fail("meshing the label region: " + meshed.summary.message);
   const auto boundary = BoundarySurface::extract(meshed.mesh.vertices.rows(), meshed.mesh.tets);
   if (!boundary) return fail("the label region's mesh has no valid boundary");
-  const auto& F = boundary->triangles();
-  const auto& V = meshed.mesh.vertices;
-  std::vector<double> cumulative;
-  double total = 0.0;
-  for (Eigen::Index f = 0; f < F.rows(); ++f) {
-    const Eigen::Vector3d a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(),
-                          c = V.row(F(f, 2)).transpose();
-    total += 0.5 * (b - a).cross(c - a).norm();
-    cumulative.push_back(total);
-  }
   // Area-weighted candidates (50 per requested point, at least 5,000), then farthest points.
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const int candidates = std::max(5000, 50 * count);
-  std::vector<Eigen::Vector3d> points;
-  points.reserve(static_cast<std::size_t>(candidates));
-  for (int k = 0; k < candidates; ++k) {
-    const auto f = static_cast<Eigen::Index>(
-        std::lower_bound(cumulative.begin(), cumulative.end(), u(rng) * total) -
-        cumulative.begin());
-    double r1 = u(rng), r2 = u(rng);
-    if (r1 + r2 > 1.0) {
-      r1 = 1.0 - r1;
-      r2 = 1.0 - r2;
-    }
-    const Eigen::Vector3d a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(),
-                          c = V.row(F(f, 2)).transpose();
-    points.push_back(a + r1 * (b - a) + r2 * (c - a));
-  }
+  const std::vector<Eigen::Vector3d> points = sample_surface_points(
+      meshed.mesh.vertices, boundary->triangles(), std::max(5000, 50 * count), seed);
   return farthest_point_selection(points, count);
 }
 

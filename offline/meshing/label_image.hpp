@@ -43,6 +43,11 @@ std::optional<std::vector<Eigen::Vector3d>> sample_label_boundary(const io::Volu
                                                                   int count, unsigned seed = 1,
                                                                   std::string* error = nullptr);
 
+/// `count` points on a triangle surface, uniformly distributed by area (seeded; std::mt19937).
+std::vector<Eigen::Vector3d> sample_surface_points(
+    const Eigen::Ref<const Eigen::MatrixXd>& vertices,
+    const Eigen::Ref<const Eigen::MatrixXi>& triangles, int count, unsigned seed);
+
 /// Farthest-point selection of `count` of the points (from the first): well spread.
 std::vector<Eigen::Vector3d> farthest_point_selection(const std::vector<Eigen::Vector3d>& points,
                                                       int count);

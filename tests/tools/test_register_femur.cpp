@@ -13,11 +13,10 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <fstream>
-#include <limits>
 #include <nlohmann/json.hpp>
-#include <random>
 
 #include "offline/io/surface_mesh_io.hpp"
+#include "offline/meshing/label_image.hpp"
 #include "tests/support/run_tool.hpp"
 #include "tools/register/surface_distance.hpp"
 
@@ -38,56 +37,6 @@ std::vector<Eigen::Vector3d> read_landmarks(const fs::path& path) {
     points.emplace_back(c.at(0).get<double>(), c.at(1).get<double>(), c.at(2).get<double>());
   }
   return points;
-}
-
-// n points on the surface, area-weighted, seeded.
-std::vector<Eigen::Vector3d> sample_surface(const sinew::offline::io::SurfaceMesh& mesh, int n,
-                                            unsigned seed) {
-  std::vector<double> cumulative;
-  double total = 0.0;
-  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
-    const Eigen::Vector3d a = mesh.vertices.row(mesh.triangles(f, 0)).transpose();
-    const Eigen::Vector3d b = mesh.vertices.row(mesh.triangles(f, 1)).transpose();
-    const Eigen::Vector3d c = mesh.vertices.row(mesh.triangles(f, 2)).transpose();
-    total += 0.5 * (b - a).cross(c - a).norm();
-    cumulative.push_back(total);
-  }
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::vector<Eigen::Vector3d> points;
-  for (int k = 0; k < n; ++k) {
-    const auto f = static_cast<Eigen::Index>(
-        std::lower_bound(cumulative.begin(), cumulative.end(), u(rng) * total) -
-        cumulative.begin());
-    double r1 = u(rng), r2 = u(rng);
-    if (r1 + r2 > 1.0) {
-      r1 = 1.0 - r1;
-      r2 = 1.0 - r2;
-    }
-    const Eigen::Vector3d a = mesh.vertices.row(mesh.triangles(f, 0)).transpose();
-    const Eigen::Vector3d b = mesh.vertices.row(mesh.triangles(f, 1)).transpose();
-    const Eigen::Vector3d c = mesh.vertices.row(mesh.triangles(f, 2)).transpose();
-    points.push_back(a + r1 * (b - a) + r2 * (c - a));
-  }
-  return points;
-}
-
-// Farthest-point selection of n of the candidates (from the first): well spread, as a user
-// would place markers, without the 30 mm holes that 150 uniform random points leave on a femur.
-std::vector<Eigen::Vector3d> well_spread(const std::vector<Eigen::Vector3d>& candidates, int n) {
-  std::vector<double> distance(candidates.size(), std::numeric_limits<double>::infinity());
-  std::vector<Eigen::Vector3d> chosen;
-  std::size_t next = 0;
-  for (int k = 0; k < n; ++k) {
-    chosen.push_back(candidates[next]);
-    std::size_t farthest = 0;
-    for (std::size_t i = 0; i < candidates.size(); ++i) {
-      distance[i] = std::min(distance[i], (candidates[i] - chosen.back()).norm());
-      if (distance[i] > distance[farthest]) farthest = i;
-    }
-    next = farthest;
-  }
-  return chosen;
 }
 
 nlohmann::json as_json(const Eigen::Vector3d& p) {
@@ -129,7 +78,11 @@ TEST(RegisterFemur, FreeFlyingFemurMovedFarMeetsTheTargetSurface) {
     c["landmarks"].push_back({{"template", as_json(template_landmarks[k])},
                               {"target", as_json(R * target_landmarks[k] + t)}});
   }
-  for (const Eigen::Vector3d& p : well_spread(sample_surface(moved, 20000, 2026), 150)) {
+  // Well spread, as a user would place markers, without the 30 mm holes that 150 uniform random
+  // points leave on a femur: farthest points among 20,000 area-weighted samples.
+  for (const Eigen::Vector3d& p : sinew::offline::farthest_point_selection(
+           sinew::offline::sample_surface_points(moved.vertices, moved.triangles, 20000, 2026),
+           150)) {
     c["icp_markers"].push_back(as_json(p));
   }
   std::ofstream(dir / "case.json") << c.dump(1);
