@@ -1,5 +1,8 @@
 #include "offline/gauss_newton.hpp"
 
+#include "offline/detail/column_blocks.hpp"
+#include "offline/detail/huge_pages.hpp"
+
 #include <nlopt.hpp>
 
 #include <Eigen/Geometry>
@@ -199,10 +202,12 @@ class Registration {
     const double damping_floor =
         stage == RegistrationStage::kAttachments ? options_.attachment_stage_damping_floor : 0.0;
     Clock::time_point start = Clock::now();
+    Eigen::MatrixXd storage = woodbury_.release_constraint_rows();
     std::optional<ConstraintJacobian> jacobian =
         free_ ? free_constraint_jacobian(energy_, terms, *stabilisation_, frame_, s, x,
-                                         free_tangent_, why)
-              : constraint_jacobian(energy_, springs_, terms, s, x, tangent_, why);
+                                         free_tangent_, why, &storage)
+              : constraint_jacobian(energy_, springs_, terms, s, x, tangent_, why, &storage);
+    storage = Eigen::MatrixXd();  // not reused (the row count changed): free it now
     record.jacobian_seconds = seconds_since(start);
     if (!jacobian) return false;
 
@@ -310,12 +315,23 @@ WeightedRows weighted_rows(const PointConstraints& terms,
 
 // Zᵀ = −(∂f/∂s)ᵀ W, one column of W at a time: Eigen's row-major sparse × dense product walks
 // rows of W (stride 3n) for all r columns at once, which is cache-hostile when W is 3n x 900.
+// Columns are independent: blocks of them go to the available threads. Zᵀ (6m x r, 1.3 GB at
+// 30k tets and 900 rows) is backed by huge pages.
 Eigen::MatrixXd z_transposed(const Eigen::SparseMatrix<double>& force_jacobian,
-                             const Eigen::MatrixXd& W) {
-  Eigen::MatrixXd Zt(force_jacobian.cols(), W.cols());
-  for (Eigen::Index j = 0; j < W.cols(); ++j) {
-    Zt.col(j).noalias() = -(force_jacobian.transpose() * W.col(j));
+                             const Eigen::MatrixXd& W, Eigen::MatrixXd* storage) {
+  Eigen::MatrixXd Zt;
+  if (storage != nullptr && storage->rows() == force_jacobian.cols() &&
+      storage->cols() == W.cols()) {
+    Zt = std::move(*storage);
+  } else {
+    Zt = detail::large_matrix(force_jacobian.cols(), W.cols());
   }
+  detail::for_each_column_block(W.cols(), 8, detail::available_threads(),
+                                [&](int /*thread*/, Eigen::Index first, Eigen::Index k) {
+                                  for (Eigen::Index j = first; j < first + k; ++j) {
+                                    Zt.col(j).noalias() = -(force_jacobian.transpose() * W.col(j));
+                                  }
+                                });
   return Zt;
 }
 
@@ -332,12 +348,10 @@ bool evaluate_tangent(PlasticElasticEnergy& energy, const Eigen::Ref<const Eigen
 
 }  // namespace
 
-std::optional<ConstraintJacobian> constraint_jacobian(PlasticElasticEnergy& energy,
-                                                      const PointConstraints& springs,
-                                                      const PointConstraints& terms,
-                                                      const Eigen::Ref<const Eigen::VectorXd>& s,
-                                                      const Eigen::Ref<const Eigen::VectorXd>& x,
-                                                      SparseCholesky& tangent, std::string* why) {
+std::optional<ConstraintJacobian> constraint_jacobian(
+    PlasticElasticEnergy& energy, const PointConstraints& springs, const PointConstraints& terms,
+    const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
+    SparseCholesky& tangent, std::string* why, Eigen::MatrixXd* storage) {
   auto fail = [&](const std::string& message) -> std::optional<ConstraintJacobian> {
     if (why != nullptr) *why = message;
     return std::nullopt;
@@ -355,16 +369,19 @@ std::optional<ConstraintJacobian> constraint_jacobian(PlasticElasticEnergy& ener
   // paper's "∂f_net/∂x z̃_k = −√c_k A_kᵀ", J never formed.
   WeightedRows rows = weighted_rows(terms, x);
   const Eigen::MatrixXd rhs = Eigen::MatrixXd(rows.rows.transpose());
-  Eigen::MatrixXd W(rhs.rows(), rhs.cols());
-  if (tangent.solve(rhs, W) != SparseCholeskyStatus::kOk) return fail("tangent solve failed");
-  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W), std::move(rows.residual)};
+  Eigen::MatrixXd W = detail::large_matrix(rhs.rows(), rhs.cols());
+  if (tangent.solve_in_blocks(rhs, W) != SparseCholeskyStatus::kOk) {
+    return fail("tangent solve failed");
+  }
+  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W, storage),
+                            std::move(rows.residual)};
 }
 
 std::optional<ConstraintJacobian> free_constraint_jacobian(
     PlasticElasticEnergy& energy, const PointConstraints& terms,
     const RigidStabilisation& stabilisation, const RigidFrame& frame,
     const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
-    RigidNullspaceSolver& tangent, std::string* why) {
+    RigidNullspaceSolver& tangent, std::string* why, Eigen::MatrixXd* storage) {
   auto fail = [&](const std::string& message) -> std::optional<ConstraintJacobian> {
     if (why != nullptr) *why = message;
     return std::nullopt;
@@ -392,7 +409,8 @@ std::optional<ConstraintJacobian> free_constraint_jacobian(
   rhs.noalias() -= G.transpose() * G_psi.transpose().fullPivLu().solve(psi_t_rhs);
   Eigen::MatrixXd W;
   if (tangent.solve(rhs, W) != SparseCholeskyStatus::kOk) return fail("tangent solve failed");
-  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W), std::move(rows.residual)};
+  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W, storage),
+                            std::move(rows.residual)};
 }
 
 const char* to_string(RegistrationStage stage) {

@@ -266,6 +266,8 @@ RegistrationResult register_free(const PlasticElasticEnergy& energy,
 /// K = ∂f_net/∂x = ∂²E/∂x² + the springs' Hessian factorised into tangent (its symbolic analysis
 /// is reused while the pattern does not change). energy must use the exact stiffness (no
 /// projection) and full storage. std::nullopt with why set when K is not positive definite.
+/// storage, when given, is memory for Zᵀ (e.g. WoodburySolver::release_constraint_rows()), used
+/// when its size matches (its values are overwritten) and left alone otherwise.
 struct ConstraintJacobian {
   Eigen::MatrixXd Zt;  ///< Zᵀ, 6m x r
   Eigen::VectorXd residual;
@@ -273,7 +275,7 @@ struct ConstraintJacobian {
 std::optional<ConstraintJacobian> constraint_jacobian(
     PlasticElasticEnergy& energy, const PointConstraints& springs, const PointConstraints& terms,
     const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
-    SparseCholesky& tangent, std::string* why = nullptr);
+    SparseCholesky& tangent, std::string* why = nullptr, Eigen::MatrixXd* storage = nullptr);
 
 /// constraint_jacobian for a free object at a static equilibrium x satisfying eqs. 19–20 for
 /// frame: K (exact, full storage, singular along the rigid motions) is factorised with six pinned
@@ -283,7 +285,7 @@ std::optional<ConstraintJacobian> free_constraint_jacobian(
     PlasticElasticEnergy& energy, const PointConstraints& terms,
     const RigidStabilisation& stabilisation, const RigidFrame& frame,
     const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
-    RigidNullspaceSolver& tangent, std::string* why = nullptr);
+    RigidNullspaceSolver& tangent, std::string* why = nullptr, Eigen::MatrixXd* storage = nullptr);
 
 /// Brent's 1D minimisation of f on [a, b] (golden section + parabolic steps), at most
 /// max_evaluations calls, stopping when the bracket is below tolerance·(b − a). Returns the best

@@ -33,7 +33,7 @@ SparseCholeskyStatus RigidNullspaceSolver::solve(const Eigen::Ref<const Eigen::M
   projected.noalias() -= nullspace_ * (nullspace_.transpose() * rhs);
   for (Eigen::Index p : pins_) projected.row(p).setZero();
   solution.resize(rhs.rows(), rhs.cols());
-  const SparseCholeskyStatus status = cholesky_.solve(projected, solution);
+  const SparseCholeskyStatus status = cholesky_.solve_in_blocks(projected, solution);
   if (status != SparseCholeskyStatus::kOk) return status;
   solution.noalias() -= nullspace_ * (nullspace_.transpose() * solution);
   return status;

@@ -1,10 +1,13 @@
 #include "offline/sparse_cholesky.hpp"
 
+#include "offline/detail/column_blocks.hpp"
+
 #include <cholmod.h>
 
 #include <algorithm>
 #include <chrono>
 #include <utility>
+#include <vector>
 
 namespace sinew::offline {
 namespace {
@@ -71,14 +74,43 @@ const char* to_string(SparseCholeskyStatus status) {
   return "unknown";
 }
 
+// A CHOLMOD workspace of its own (cholmod_solve2 allocates in it, never in the factor) and the
+// dense buffers cholmod_solve2 reuses between calls (reallocated only when k changes).
+struct SparseCholesky::SolveWorkspace::Impl {
+  cholmod_common common;
+  cholmod_dense* x = nullptr;
+  cholmod_dense* y = nullptr;
+  cholmod_dense* e = nullptr;
+
+  Impl() {
+    cholmod_start(&common);
+    common.print = 0;
+    common.error_handler = nullptr;
+  }
+  ~Impl() {
+    if (x != nullptr) cholmod_free_dense(&x, &common);
+    if (y != nullptr) cholmod_free_dense(&y, &common);
+    if (e != nullptr) cholmod_free_dense(&e, &common);
+    cholmod_finish(&common);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+};
+
+SparseCholesky::SolveWorkspace::SolveWorkspace() : impl_(std::make_unique<Impl>()) {}
+SparseCholesky::SolveWorkspace::~SolveWorkspace() = default;
+SparseCholesky::SolveWorkspace::SolveWorkspace(SolveWorkspace&&) noexcept = default;
+SparseCholesky::SolveWorkspace& SparseCholesky::SolveWorkspace::operator=(
+    SolveWorkspace&&) noexcept = default;
+
 struct SparseCholesky::Impl {
   SparseCholeskyOptions options;
   cholmod_common common;
   cholmod_factor* factor = nullptr;
-  // Solve workspaces, kept between calls (cholmod_solve2 reallocates only when k changes).
-  cholmod_dense* x = nullptr;
-  cholmod_dense* y = nullptr;
-  cholmod_dense* e = nullptr;
+  // The solve workspace of solve() without one, kept between calls.
+  SolveWorkspace workspace;
+  // One per thread of solve_in_blocks().
+  std::vector<SolveWorkspace> thread_workspaces;
   bool factorised = false;
   Eigen::Index n = 0;
   // The analysed pattern (compressed form), to check factorise() input.
@@ -115,9 +147,6 @@ struct SparseCholesky::Impl {
 
   ~Impl() {
     free_factor();
-    if (x != nullptr) cholmod_free_dense(&x, &common);
-    if (y != nullptr) cholmod_free_dense(&y, &common);
-    if (e != nullptr) cholmod_free_dense(&e, &common);
     cholmod_finish(&common);
   }
 
@@ -240,7 +269,14 @@ SparseCholeskyStatus SparseCholesky::compute(const Eigen::SparseMatrix<double>& 
 
 SparseCholeskyStatus SparseCholesky::solve(const Eigen::Ref<const Eigen::MatrixXd>& rhs,
                                            Eigen::Ref<Eigen::MatrixXd> solution) {
-  Impl& d = *impl_;
+  return solve(rhs, solution, impl_->workspace);
+}
+
+SparseCholeskyStatus SparseCholesky::solve(const Eigen::Ref<const Eigen::MatrixXd>& rhs,
+                                           Eigen::Ref<Eigen::MatrixXd> solution,
+                                           SolveWorkspace& workspace) const {
+  const Impl& d = *impl_;
+  SolveWorkspace::Impl& w = *workspace.impl_;
   if (d.factor == nullptr) return SparseCholeskyStatus::kNotAnalysed;
   if (!d.factorised) return SparseCholeskyStatus::kNotFactorised;
   if (rhs.rows() != d.n || solution.rows() != d.n || solution.cols() != rhs.cols() ||
@@ -256,14 +292,42 @@ SparseCholeskyStatus SparseCholesky::solve(const Eigen::Ref<const Eigen::MatrixX
   b.z = nullptr;
   b.xtype = CHOLMOD_REAL;
   b.dtype = CHOLMOD_DOUBLE;
-  if (!cholmod_solve2(CHOLMOD_A, d.factor, &b, nullptr, &d.x, nullptr, &d.y, &d.e, &d.common)) {
-    const SparseCholeskyStatus s = d.status_from_common();
-    return s == SparseCholeskyStatus::kOk ? SparseCholeskyStatus::kCholmodError : s;
+  if (!cholmod_solve2(CHOLMOD_A, d.factor, &b, nullptr, &w.x, nullptr, &w.y, &w.e, &w.common)) {
+    if (w.common.status == CHOLMOD_OUT_OF_MEMORY) return SparseCholeskyStatus::kOutOfMemory;
+    return SparseCholeskyStatus::kCholmodError;
   }
   const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> x(
-      static_cast<const double*>(d.x->x), rhs.rows(), rhs.cols(),
-      Eigen::OuterStride<>(static_cast<Eigen::Index>(d.x->d)));
+      static_cast<const double*>(w.x->x), rhs.rows(), rhs.cols(),
+      Eigen::OuterStride<>(static_cast<Eigen::Index>(w.x->d)));
   solution = x;
+  return SparseCholeskyStatus::kOk;
+}
+
+SparseCholeskyStatus SparseCholesky::solve_in_blocks(const Eigen::Ref<const Eigen::MatrixXd>& rhs,
+                                                     Eigen::Ref<Eigen::MatrixXd> solution,
+                                                     Eigen::Index block_columns, int threads) {
+  if (block_columns < 1 || threads < 0 || solution.cols() != rhs.cols() || rhs.cols() == 0) {
+    return SparseCholeskyStatus::kInvalidInput;
+  }
+  if (rhs.rows() != impl_->n || solution.rows() != impl_->n) {
+    return SparseCholeskyStatus::kInvalidInput;
+  }
+  const int used = detail::resolve_threads(threads);
+  std::vector<SolveWorkspace>& workspaces = impl_->thread_workspaces;
+  if (workspaces.size() < static_cast<std::size_t>(used)) {
+    workspaces.resize(static_cast<std::size_t>(used));
+  }
+  std::vector<SparseCholeskyStatus> statuses(static_cast<std::size_t>(used),
+                                             SparseCholeskyStatus::kOk);
+  detail::for_each_column_block(
+      rhs.cols(), block_columns, used, [&](int thread, Eigen::Index first, Eigen::Index k) {
+        const auto t = static_cast<std::size_t>(thread);
+        if (statuses[t] != SparseCholeskyStatus::kOk) return;
+        statuses[t] = solve(rhs.middleCols(first, k), solution.middleCols(first, k), workspaces[t]);
+      });
+  for (const SparseCholeskyStatus status : statuses) {
+    if (status != SparseCholeskyStatus::kOk) return status;
+  }
   return SparseCholeskyStatus::kOk;
 }
 

@@ -77,6 +77,35 @@ class SparseCholesky {
   SparseCholeskyStatus solve(const Eigen::Ref<const Eigen::MatrixXd>& rhs,
                              Eigen::Ref<Eigen::MatrixXd> solution);
 
+  /// The solve workspace of one thread (a CHOLMOD workspace and its dense buffers).
+  class SolveWorkspace {
+   public:
+    SolveWorkspace();
+    ~SolveWorkspace();
+    SolveWorkspace(SolveWorkspace&&) noexcept;
+    SolveWorkspace& operator=(SolveWorkspace&&) noexcept;
+    SolveWorkspace(const SolveWorkspace&) = delete;
+    SolveWorkspace& operator=(const SolveWorkspace&) = delete;
+
+   private:
+    friend class SparseCholesky;
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+  };
+
+  /// solve() with the caller's workspace: the factor is only read, so several threads may solve
+  /// with one factor at once, each with its own workspace (the multi-right-hand-side solves of
+  /// the Woodbury step split their column blocks this way).
+  SparseCholeskyStatus solve(const Eigen::Ref<const Eigen::MatrixXd>& rhs,
+                             Eigen::Ref<Eigen::MatrixXd> solution, SolveWorkspace& workspace) const;
+
+  /// solve() for many right-hand sides: blocks of at most block_columns columns spread over
+  /// threads (0 = the CPUs this process may use), each thread with a workspace of its own kept in
+  /// this object. Same shapes and results as solve() (to rounding).
+  SparseCholeskyStatus solve_in_blocks(const Eigen::Ref<const Eigen::MatrixXd>& rhs,
+                                       Eigen::Ref<Eigen::MatrixXd> solution,
+                                       Eigen::Index block_columns = 64, int threads = 0);
+
   bool analysed() const;
   bool factorised() const;
   /// Size n of the analysed matrix (0 before analyse()).

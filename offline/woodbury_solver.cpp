@@ -1,5 +1,8 @@
 #include "offline/woodbury_solver.hpp"
 
+#include "offline/detail/column_blocks.hpp"
+#include "offline/detail/huge_pages.hpp"
+
 #include <cblas.h>
 
 #include <algorithm>
@@ -40,9 +43,13 @@ const char* to_string(WoodburyStatus status) {
 }
 
 std::optional<std::string> WoodburySolverOptions::validate() const {
+  std::ostringstream out;
   if (block_columns < 1) {
-    std::ostringstream out;
     out << "block_columns = " << block_columns << " must be >= 1";
+    return out.str();
+  }
+  if (threads < 0) {
+    out << "threads = " << threads << " must be >= 0";
     return out.str();
   }
   return std::nullopt;
@@ -85,6 +92,8 @@ std::optional<WoodburySolver> WoodburySolver::create(const TetAdjacency& adjacen
   WoodburySolver solver;
   solver.options_ = options;
   solver.num_tets_ = num_tets;
+  solver.threads_ = detail::resolve_threads(options.threads);
+  solver.work_.resize(static_cast<std::size_t>(solver.threads_));
   solver.grounded_ = SparseCholesky(SparseCholeskyOptions{options.ordering});
   // L^sc without tet 0: SPD on a connected graph (a grounded graph Laplacian).
   const Eigen::SparseMatrix<double> scalar = scalar_tet_laplacian(adjacency, num_tets);
@@ -98,37 +107,52 @@ std::optional<WoodburySolver> WoodburySolver::create(const TetAdjacency& adjacen
   return solver;
 }
 
-void WoodburySolver::scalar_pseudo_inverse(Eigen::MatrixXd& U) {
+void WoodburySolver::scalar_pseudo_inverse(Eigen::MatrixXd& U, ThreadWork& work) const {
   // Project onto 1⊥, solve with tet 0 grounded (row 0 of L^sc y = b then holds automatically, since
   // 1ᵀ(L^sc y − b) = 0), project the solution onto 1⊥: exactly L^sc⁺ U.
   const Eigen::Index m = num_tets_;
   U.rowwise() -= U.colwise().mean();
-  work_solution_.resize(m - 1, U.cols());
-  grounded_.solve(U.bottomRows(m - 1), work_solution_);
+  work.solution.resize(m - 1, U.cols());
+  grounded_.solve(U.bottomRows(m - 1), work.solution, work.cholmod);
   U.row(0).setZero();
-  U.bottomRows(m - 1) = work_solution_;
+  U.bottomRows(m - 1) = work.solution;
   U.rowwise() -= U.colwise().mean();
 }
 
-void WoodburySolver::squared_pseudo_inverse_block(const Eigen::Ref<const Eigen::MatrixXd>& V,
-                                                  Eigen::Ref<Eigen::MatrixXd> out) {
+void WoodburySolver::component_pseudo_inverse(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                              Eigen::Index first, Eigen::Index k, int times,
+                                              ThreadWork& work,
+                                              Eigen::Ref<Eigen::MatrixXd> out) const {
   const Eigen::Index m = num_tets_;
-  const Eigen::Index k = V.cols();
   // Gather: column j of V (tet-major 6m) becomes 6 columns (one per component) of an m x 6k block.
-  work_rhs_.resize(m, 6 * k);
+  work.rhs.resize(m, 6 * k);
   for (Eigen::Index j = 0; j < k; ++j) {
+    const double* column = V.col(first + j).data();
     for (Eigen::Index t = 0; t < m; ++t) {
-      for (int c = 0; c < 6; ++c) work_rhs_(t, 6 * j + c) = V(6 * t + c, j);
+      for (int c = 0; c < 6; ++c) work.rhs(t, 6 * j + c) = column[6 * t + c];
     }
   }
-  scalar_pseudo_inverse(work_rhs_);
-  scalar_pseudo_inverse(work_rhs_);
+  for (int i = 0; i < times; ++i) scalar_pseudo_inverse(work.rhs, work);
   const std::array<double, 6>& w = plastic_strain_laplacian_weights();
+  std::array<double, 6> scale;
+  for (int c = 0; c < 6; ++c) scale[c] = 1.0 / std::pow(w[c], times);
   for (Eigen::Index j = 0; j < k; ++j) {
+    double* column = out.col(first + j).data();
     for (Eigen::Index t = 0; t < m; ++t) {
-      for (int c = 0; c < 6; ++c) out(6 * t + c, j) = work_rhs_(t, 6 * j + c) / (w[c] * w[c]);
+      for (int c = 0; c < 6; ++c) column[6 * t + c] = work.rhs(t, 6 * j + c) * scale[c];
     }
   }
+}
+
+void WoodburySolver::component_pseudo_inverse_of_columns(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                                         int times,
+                                                         Eigen::Ref<Eigen::MatrixXd> out) {
+  // L⁺ = L^sc⁺ ⊗ diag(1/w): each block of columns is independent.
+  detail::for_each_column_block(
+      V.cols(), options_.block_columns, threads_,
+      [&](int thread, Eigen::Index first, Eigen::Index k) {
+        component_pseudo_inverse(V, first, k, times, work_[static_cast<std::size_t>(thread)], out);
+      });
 }
 
 WoodburyStatus WoodburySolver::apply_squared_laplacian_pseudo_inverse(
@@ -137,11 +161,7 @@ WoodburyStatus WoodburySolver::apply_squared_laplacian_pseudo_inverse(
     return WoodburyStatus::kInvalidInput;
   }
   if (!V.allFinite()) return WoodburyStatus::kInvalidInput;
-  const Eigen::Index block = options_.block_columns;
-  for (Eigen::Index j0 = 0; j0 < V.cols(); j0 += block) {
-    const Eigen::Index k = std::min(block, V.cols() - j0);
-    squared_pseudo_inverse_block(V.middleCols(j0, k), out.middleCols(j0, k));
-  }
+  component_pseudo_inverse_of_columns(V, 2, out);
   return WoodburyStatus::kOk;
 }
 
@@ -160,43 +180,6 @@ WoodburyStatus WoodburySolver::apply_base_inverse(const Eigen::Ref<const Eigen::
   return WoodburyStatus::kOk;
 }
 
-void WoodburySolver::laplacian_pseudo_inverse_of_columns(
-    const Eigen::Ref<const Eigen::MatrixXd>& Zt, Eigen::Ref<Eigen::MatrixXd> Y) {
-  // Y = L⁺Zᵀ, L⁺ = L^sc⁺ ⊗ diag(1/w): gather columns of Zᵀ into component columns of an m x 6k
-  // block (k columns at a time), one grounded block solve, scatter back with 1/w.
-  const Eigen::Index m = num_tets_;
-  const std::array<double, 6>& w = plastic_strain_laplacian_weights();
-  const Eigen::Index block = options_.block_columns;
-  for (Eigen::Index j0 = 0; j0 < Zt.cols(); j0 += block) {
-    const Eigen::Index k = std::min(block, Zt.cols() - j0);
-    work_rhs_.resize(m, 6 * k);
-    for (Eigen::Index j = 0; j < k; ++j) {
-      for (Eigen::Index t = 0; t < m; ++t) {
-        for (int c = 0; c < 6; ++c) work_rhs_(t, 6 * j + c) = Zt(6 * t + c, j0 + j);
-      }
-    }
-    scalar_pseudo_inverse(work_rhs_);
-    for (Eigen::Index j = 0; j < k; ++j) {
-      for (Eigen::Index t = 0; t < m; ++t) {
-        for (int c = 0; c < 6; ++c) Y(6 * t + c, j0 + j) = work_rhs_(t, 6 * j + c) / w[c];
-      }
-    }
-  }
-}
-
-void WoodburySolver::apply_laplacian_pseudo_inverse(Eigen::Ref<Eigen::VectorXd> v) {
-  const Eigen::Index m = num_tets_;
-  const std::array<double, 6>& w = plastic_strain_laplacian_weights();
-  work_rhs_.resize(m, 6);
-  for (Eigen::Index t = 0; t < m; ++t) {
-    for (int c = 0; c < 6; ++c) work_rhs_(t, c) = v(6 * t + c);
-  }
-  scalar_pseudo_inverse(work_rhs_);
-  for (Eigen::Index t = 0; t < m; ++t) {
-    for (int c = 0; c < 6; ++c) v(6 * t + c) = work_rhs_(t, c) / w[c];
-  }
-}
-
 WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt, double relative,
                                                               double floor) {
   factorised_ = false;
@@ -209,20 +192,28 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt
   Zt_ = std::move(Zt);
   // ZΨ (r x 6): Ψ's column c sums component c over the tets, / √m.
   const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
-  Z_psi_.setZero(r, 6);
-  for (Eigen::Index t = 0; t < m; ++t) Z_psi_ += Zt_.middleRows<6>(6 * t).transpose();
-  Z_psi_ *= inv_sqrt_m;
+  // Column by column (contiguous), not 6-row slices across all columns (a 6m-stride walk).
+  Z_psi_.resize(r, 6);
+  for (Eigen::Index j = 0; j < r; ++j) {
+    Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+    for (Eigen::Index t = 0; t < m; ++t) sum += Zt_.col(j).segment<6>(6 * t);
+    Z_psi_.row(j) = inv_sqrt_m * sum.transpose();
+  }
   const double delta = (relative * Z_psi_.squaredNorm() + floor * Zt_.squaredNorm()) / 6.0 + 1e-12;
   const double k = std::sqrt(1.0 + delta);
   nullspace_scale_ = k;
 
   // With Y = L⁺Zᵀ (one Laplacian solve per row of Z, not two: (L²)⁺ = L⁺L⁺ and L⁺ symmetric),
   //   Z B⁻¹ Zᵀ = Z(L²)⁺Zᵀ − ZΨΨᵀZᵀ = YᵀY − (ZΨ)(ZΨ)ᵀ,  Z B⁻¹(kΨ) = −k ZΨ,  kΨᵀB⁻¹kΨ = −k²I,
-  // so the capacitance I + ẐB⁻¹Ẑᵀ needs YᵀY (a symmetric rank-6m product) and nothing 6m x r
-  // is kept after this call.
+  // so the capacitance I + ẐB⁻¹Ẑᵀ needs YᵀY (a symmetric rank-6m product); Y's memory is kept
+  // for the next call, not its values.
   Clock::time_point start = Clock::now();
-  Eigen::MatrixXd Y(size(), r);
-  laplacian_pseudo_inverse_of_columns(Zt_, Y);
+  if (Y_.rows() != size() || Y_.cols() != r) {
+    Y_ = Eigen::MatrixXd();
+    Y_ = options_.huge_pages ? detail::large_matrix(size(), r) : Eigen::MatrixXd(size(), r);
+  }
+  Eigen::MatrixXd& Y = Y_;
+  component_pseudo_inverse_of_columns(Zt_, 1, Y);
   base_solve_seconds_ = seconds_since(start);
 
   start = Clock::now();
@@ -248,6 +239,11 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt
   return WoodburyStatus::kOk;
 }
 
+Eigen::MatrixXd WoodburySolver::release_constraint_rows() {
+  factorised_ = false;
+  return std::move(Zt_);
+}
+
 WoodburyStatus WoodburySolver::solve(const Eigen::Ref<const Eigen::VectorXd>& h,
                                      Eigen::Ref<Eigen::VectorXd> y) {
   if (!factorised_) return WoodburyStatus::kNotFactorised;
@@ -268,9 +264,9 @@ WoodburyStatus WoodburySolver::solve(const Eigen::Ref<const Eigen::VectorXd>& h,
   Zhat_u.tail<6>() *= k * inv_sqrt_m;
   const Eigen::VectorXd c = capacitance_.solve(Zhat_u);
   // B⁻¹Ẑᵀc = (L²)⁺Zᵀc₁ − Ψ(ZΨ)ᵀc₁ − kΨc₂.
-  Eigen::VectorXd correction = Zt_ * c.head(r);
-  apply_laplacian_pseudo_inverse(correction);
-  apply_laplacian_pseudo_inverse(correction);
+  const Eigen::VectorXd Zt_c = Zt_ * c.head(r);
+  Eigen::VectorXd correction(size());
+  component_pseudo_inverse(Zt_c, 0, 1, 2, work_.front(), correction);
   const Eigen::Matrix<double, 6, 1> nullspace_part =
       (Z_psi_.transpose() * c.head(r) + k * c.tail<6>()) * inv_sqrt_m;
   for (Eigen::Index t = 0; t < num_tets_; ++t) correction.segment<6>(6 * t) -= nullspace_part;

@@ -12,6 +12,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "tests/support/finite_difference.hpp"
@@ -137,6 +138,38 @@ TEST(SparseCholesky, BlockOfRightHandSidesEqualsColumnByColumn) {
   // A block whose size does not match is refused.
   Eigen::MatrixXd wrong(A.rows(), 3);
   EXPECT_EQ(cholesky.solve(B, wrong), SparseCholeskyStatus::kInvalidInput);
+}
+
+TEST(SparseCholesky, ThreadsWithTheirOwnWorkspacesShareOneFactor) {
+  // Four threads solve different column blocks with one factor at once, each with its own
+  // workspace, many times over: every block equals the single-threaded solve.
+  std::mt19937 gen(4);
+  const SparseMatrix A = box_laplacian(0.2);
+  Eigen::MatrixXd B(A.rows(), 16);
+  for (Eigen::Index j = 0; j < B.cols(); ++j) B.col(j) = testing::random_vector(A.rows(), 1.0, gen);
+  SparseCholesky cholesky;
+  ASSERT_EQ(cholesky.compute(A), SparseCholeskyStatus::kOk);
+  Eigen::MatrixXd serial(A.rows(), B.cols());
+  ASSERT_EQ(cholesky.solve(B, serial), SparseCholeskyStatus::kOk);
+
+  Eigen::MatrixXd parallel = Eigen::MatrixXd::Zero(A.rows(), B.cols());
+  std::vector<SparseCholeskyStatus> statuses(4, SparseCholeskyStatus::kOk);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      SparseCholesky::SolveWorkspace workspace;
+      Eigen::MatrixXd X(A.rows(), 4);
+      for (int repeat = 0; repeat < 50; ++repeat) {
+        const SparseCholeskyStatus status = static_cast<const SparseCholesky&>(cholesky).solve(
+            B.middleCols(4 * t, 4), X, workspace);
+        if (status != SparseCholeskyStatus::kOk) statuses[static_cast<std::size_t>(t)] = status;
+      }
+      parallel.middleCols(4 * t, 4) = X;
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  for (const SparseCholeskyStatus status : statuses) EXPECT_EQ(status, SparseCholeskyStatus::kOk);
+  EXPECT_LT(relative_difference(parallel, serial), 1e-12);
 }
 
 TEST(SparseCholesky, RefactorisesNewValuesOnTheAnalysedPattern) {

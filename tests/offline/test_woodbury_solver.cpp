@@ -99,6 +99,36 @@ TEST(WoodburySolver, MatchesADenseSolveAndConjugateGradients) {
   EXPECT_LT((cg - y).norm() / y.norm(), 1e-6);
 }
 
+TEST(WoodburySolver, ThreadsAndBlockSizesGiveTheSameStep) {
+  // The Laplacian solves are split in column blocks over threads; neither the split nor the
+  // huge-page advice may change the answer beyond rounding.
+  const System system = make_system(3, 3, 2);
+  const Eigen::MatrixXd Z = 30.0 * random_matrix(21, 6 * system.m, 5);
+  const Eigen::VectorXd h = random_matrix(6 * system.m, 1, 6);
+  auto step = [&](int threads, int block, bool huge_pages) {
+    WoodburySolverOptions options;
+    options.threads = threads;
+    options.block_columns = block;
+    options.huge_pages = huge_pages;
+    auto solver = WoodburySolver::create(system.laplacian.adjacency, system.m, options);
+    EXPECT_TRUE(solver.has_value());
+    EXPECT_EQ(solver->set_constraint_rows_transposed(Z.transpose(), 0.5), WoodburyStatus::kOk);
+    Eigen::VectorXd y(h.size());
+    EXPECT_EQ(solver->solve(h, y), WoodburyStatus::kOk);
+    return y;
+  };
+  const Eigen::VectorXd reference = step(1, 64, false);
+  const double delta = 0.5 * (Z * system.Psi).squaredNorm() / 6.0 + 1e-12;
+  const Eigen::MatrixXd H =
+      system.L * system.L + Z.transpose() * Z + delta * system.Psi * system.Psi.transpose();
+  EXPECT_LT((H * reference - h).norm() / h.norm(), 1e-8);
+  for (const auto& [threads, block] : {std::pair{2, 1}, std::pair{3, 4}, std::pair{2, 16}}) {
+    const Eigen::VectorXd y = step(threads, block, true);
+    EXPECT_LT((y - reference).norm() / reference.norm(), 1e-12)
+        << threads << " threads, blocks of " << block;
+  }
+}
+
 TEST(WoodburySolver, BadInputsAreStatuses) {
   const System system = make_system(2, 1, 1);
   std::string error;
@@ -106,6 +136,10 @@ TEST(WoodburySolver, BadInputsAreStatuses) {
   bad.block_columns = 0;
   EXPECT_FALSE(WoodburySolver::create(system.laplacian.adjacency, system.m, bad, &error));
   EXPECT_NE(error.find("block_columns"), std::string::npos) << error;
+  bad.block_columns = 1;
+  bad.threads = -1;
+  EXPECT_FALSE(WoodburySolver::create(system.laplacian.adjacency, system.m, bad, &error));
+  EXPECT_NE(error.find("threads = -1"), std::string::npos) << error;
   // Two disconnected boxes: L has 12 nullspace vectors, the method needs exactly 6.
   testing::TetMesh two = testing::make_box_mesh(1, 1, 1);
   const testing::TetMesh one = two;
