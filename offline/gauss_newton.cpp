@@ -82,6 +82,10 @@ class Registration {
 
   bool free_object() const { return free_; }
 
+  // The ICP markers' weight relative to alpha in the coming iteration (GaussNewtonOptions::
+  // icp_weight_ramp).
+  void set_icp_weight_scale(double scale) { icp_weight_scale_ = scale; }
+
   // Free objects: the stabilisation set D = the material points of the stage's terms (§3.6), and
   // the frame (R, t) that x satisfies now; line-search equilibria keep it.
   bool set_stabilisation(const PointConstraints& terms, const Eigen::VectorXd& at,
@@ -151,7 +155,7 @@ class Registration {
         c.kind = ConstraintKind::kIcpMarker;
         c.point = closest_point_->closest(z);
         c.target = z;
-        c.weight = options_.alpha;
+        c.weight = options_.alpha * icp_weight_scale_;
         list.push_back(c);
       }
     }
@@ -251,6 +255,7 @@ class Registration {
   std::optional<RigidStabilisation> stabilisation_;
   RigidFrame frame_;
   double diagonal_ = 1.0;  // of the template's bounding box: the scale of "no rigid motion left"
+  double icp_weight_scale_ = 1.0;
 };
 
 // NLopt's C callback for the constant-s fit.
@@ -457,6 +462,13 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
   }
   if (!(max_marker_error >= 0.0)) {
     return invalid("max_marker_error", max_marker_error, "must be >= 0");
+  }
+  for (std::size_t i = 0; i < icp_weight_ramp.size(); ++i) {
+    const double f = icp_weight_ramp[i];
+    if (!(f > 0.0 && f <= 1.0)) {
+      const std::string field = "icp_weight_ramp[" + std::to_string(i) + "]";
+      return invalid(field.c_str(), f, "must be in (0, 1]");
+    }
   }
   if (!(min_step >= 0.0 && min_step < 1.0))
     return invalid("min_step", min_step, "must be in [0, 1)");
@@ -852,6 +864,11 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
       GaussNewtonIteration record;
       record.stage = stage;
       record.iteration = iteration;
+      // A function of the iteration alone, so that a resumed run weighs exactly as the first.
+      const bool ramping = stage == RegistrationStage::kIcpMarkers &&
+                           static_cast<std::size_t>(iteration) <= options.icp_weight_ramp.size();
+      r.set_icp_weight_scale(
+          ramping ? options.icp_weight_ramp[static_cast<std::size_t>(iteration - 1)] : 1.0);
       auto terms = r.objective_constraints(stage, r.x, &error);
       if (!terms) return fail(GaussNewtonTermination::kInvalidInput, error);
       const double before = r.objective(r.s, r.x, *terms);
@@ -915,7 +932,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         summary.iterations.push_back(record);
         if (progress) progress(record);
         termination = GaussNewtonTermination::kLineSearchFailed;
-        stage_done = true;
+        stage_done = !ramping;
       } else {
         r.s += best_eta * step;
         r.x = best_x;
@@ -926,8 +943,10 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         record.seconds = seconds_since(start);
         summary.iterations.push_back(record);
         if (progress) progress(record);
-        if (stage == RegistrationStage::kIcpMarkers && options.max_marker_error > 0.0 &&
-            record.marker_error_max <= options.max_marker_error) {
+        if (ramping) {
+          // The stopping tests wait for the full weight.
+        } else if (stage == RegistrationStage::kIcpMarkers && options.max_marker_error > 0.0 &&
+                   record.marker_error_max <= options.max_marker_error) {
           termination = GaussNewtonTermination::kMarkerTolerance;
           stage_done = true;
         } else if (best_eta < options.min_step) {

@@ -244,6 +244,59 @@ TEST(GaussNewton, DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers) {
   EXPECT_GT(correlation, 0.8);
 }
 
+// The ICP weight ramp (GaussNewtonOptions::icp_weight_ramp): its iterations weigh the markers
+// by the factors (the objective before the first ICP iteration is the smoothness plus factor·the
+// plain run's marker term, at the same state), the stopping tests wait for the full weight, and
+// the stage still ends with its markers met.
+TEST(GaussNewton, IcpWeightRampWeighsTheFirstIterationsLessAndStopsOnlyAtFullWeight) {
+  Bar bar = make_bar();
+  ASSERT_TRUE(bar.energy.has_value());
+  const Truth truth = make_truth(bar, 5);
+  RegistrationConstraints constraints;
+  constraints.attachments = bar.attachments;
+  for (std::size_t i = 0; i < 12; ++i) {
+    constraints.icp_markers.push_back(truth.x.segment<3>(3 * truth.candidates[i]));
+  }
+  auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
+  ASSERT_TRUE(surface_query.has_value());
+  BoundaryClosestPoint closest(*surface_query);
+  GaussNewtonOptions plain;
+  plain.max_iterations_per_stage = 8;
+  plain.max_marker_error = 2e-3;  // 2 mm: met after the first full-weight iteration
+  const RegistrationResult a = register_attached(*bar.energy, constraints, &closest, plain);
+  GaussNewtonOptions ramped = plain;
+  ramped.icp_weight_ramp = {1e-2, 1e-1, 1e-1};
+  const RegistrationResult b = register_attached(*bar.energy, constraints, &closest, ramped);
+  ASSERT_TRUE(a.summary.usable() && b.summary.usable()) << b.summary.full_report();
+
+  auto icp = [](const RegistrationResult& r) {
+    std::vector<GaussNewtonIteration> list;
+    for (const GaussNewtonIteration& it : r.summary.iterations) {
+      if (it.stage == RegistrationStage::kIcpMarkers) list.push_back(it);
+    }
+    return list;
+  };
+  const auto plain_icp = icp(a), ramped_icp = icp(b);
+  ASSERT_FALSE(plain_icp.empty());
+  // Both runs enter the ICP stage from the same initial fit; the objective there is
+  // ½‖Ls‖² (0: the initial fit leaves s uniform) + the attachment term (β, not ramped: small
+  // here) + weight·markers.
+  const double factor = ramped_icp.front().objective_before / plain_icp.front().objective_before;
+  EXPECT_NEAR(factor, 1e-2, 1e-4);
+  EXPECT_EQ(a.summary.termination, GaussNewtonTermination::kMarkerTolerance);
+  EXPECT_EQ(b.summary.termination, GaussNewtonTermination::kMarkerTolerance);
+  // The plain run stops as soon as the tolerance holds; the ramped one not before its ramp ends.
+  EXPECT_GT(ramped_icp.size(), ramped.icp_weight_ramp.size());
+  EXPECT_LE(b.summary.marker_error_max, plain.max_marker_error);
+
+  GaussNewtonOptions bad = ramped;
+  bad.icp_weight_ramp = {0.5, 0.0};
+  ASSERT_TRUE(bad.validate().has_value());
+  EXPECT_NE(bad.validate()->find("icp_weight_ramp[1] = 0"), std::string::npos) << *bad.validate();
+  bad.icp_weight_ramp = {1.5};
+  EXPECT_TRUE(bad.validate().has_value());
+}
+
 // Attachments far from the template (the far end of a bar twisted by 135° about its axis, as in
 // the Botsch–Sorkine benchmark): the direct first equilibrium fails, the load-stepped one
 // succeeds.

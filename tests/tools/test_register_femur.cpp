@@ -3,10 +3,11 @@
 // target femur (a statistical-shape-model sample with the same topology): the target's 6
 // landmarks and 150 points sampled on its surface as ICP markers, after the whole target was moved
 // by 120° about an oblique axis and 300 mm. The case has no attachments, so the tool runs
-// register_free. Checked: the mean symmetric surface distance (point to triangle, both
-// directions) between the result and the moved target, the mean marker error, and (reported, not
-// a criterion: closest-point markers let vertices slide along the surface) the vertex-to-vertex
-// error, which the shared topology makes meaningful. Skips cleanly without ../shared.
+// register_free with the tool's default ICP weight ramp. Checked: the mean symmetric surface
+// distance (point to triangle, both directions) between the result and the moved target, the mean
+// marker error, and (reported, not a criterion: closest-point markers let vertices slide along the
+// surface) the vertex-to-vertex error, which the shared topology makes meaningful. Skips cleanly
+// without ../shared.
 
 #include <gtest/gtest.h>
 
@@ -119,11 +120,12 @@ TEST(RegisterFemur, FreeFlyingFemurMovedFarMeetsTheTargetSurface) {
       "%.3f max %.3f mm\n",
       marker_mean, marker_max, forward.mean, forward.max, backward.mean, backward.max, symmetric,
       vertex_sum / static_cast<double>(moved.vertices.rows()), vertex_max);
-  // Issue acceptance: markers ≤ 0.3 mm on average (holds: 0.11 mm) and the surface within 0.5 mm
-  // mean symmetric distance, which is NOT met: 0.57 mm (0.96 mm with the default mesh, 0.53 mm
-  // with 13k tets; 0.31 mm with 400 markers). The bound below guards what holds today.
+  // Issue acceptance: markers ≤ 0.3 mm on average and the surface within 0.5 mm mean symmetric
+  // distance. With the tool's default ICP weight ramp (1e-3, 1e-2, 1e-1 of α, three iterations
+  // each): markers 0.016 mm, surface 0.41 mm. Without the ramp (the paper's plain ICP stage) the
+  // markers are met at once on correspondences taken from the landmark-stage shape: 0.57 mm.
   EXPECT_LE(marker_mean, 0.3);
-  EXPECT_LE(symmetric, 0.65);
+  EXPECT_LE(symmetric, 0.5);
 }
 
 }  // namespace

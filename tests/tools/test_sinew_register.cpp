@@ -490,7 +490,14 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
        }),
        {},
        "case.json: unknown key 'alhpa' in weights (expected one of: alpha, beta, "
-       "attachment_stiffness)",
+       "attachment_stiffness, icp_weight_ramp)",
+       "case.json"},
+      {"ramp_factor_out_of_range",
+       with([](auto& j) {
+         j["weights"] = {{"icp_weight_ramp", {0.01, 2.0}}};
+       }),
+       {},
+       "case.json: weights.icp_weight_ramp[1] = 2 must be in (0, 1]",
        "case.json"},
       {"far_attachment",
        with([](auto& j) {

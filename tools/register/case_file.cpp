@@ -266,7 +266,7 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
   if (root.has("weights")) {
     const JsonCursor w = root.at("weights");
-    w.expect_keys({"alpha", "beta", "attachment_stiffness"});
+    w.expect_keys({"alpha", "beta", "attachment_stiffness", "icp_weight_ramp"});
     if (w.has("alpha")) c.weights.alpha = w.at("alpha").positive_number();
     if (w.has("beta")) {
       const double beta = w.at("beta").finite_number();
@@ -275,6 +275,16 @@ RegistrationCase read_registration_case(const std::string& path) {
     }
     if (w.has("attachment_stiffness"))
       c.weights.attachment_stiffness = w.at("attachment_stiffness").positive_number();
+    if (w.has("icp_weight_ramp")) {
+      const JsonCursor ramp = w.at("icp_weight_ramp");
+      if (!ramp.value().is_array()) ramp.fail("must be a list of factors in (0, 1]");
+      c.weights.icp_weight_ramp.clear();
+      for (std::size_t i = 0; i < ramp.array_size(); ++i) {
+        const double f = ramp.at(i).finite_number();
+        if (!(f > 0 && f <= 1)) ramp.at(i).fail("= " + number(f) + " must be in (0, 1]");
+        c.weights.icp_weight_ramp.push_back(f);
+      }
+    }
   }
   if (root.has("stop")) {
     const JsonCursor s = root.at("stop");

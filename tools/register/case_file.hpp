@@ -84,6 +84,9 @@ struct RegistrationWeights {
   /// Gauss–Newton step moves the uniform plastic modes the springs hardly see).
   std::optional<double> beta;
   double attachment_stiffness = 10;  ///< spring of each attachment, μ·diagonal; > 0
+  /// ICP continuation (offline::GaussNewtonOptions::icp_weight_ramp): factors of alpha for the
+  /// first ICP iterations, each in (0, 1]. Default: 1e-3, 1e-2, 1e-1, three iterations each.
+  std::vector<double> icp_weight_ramp = {1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2, 1e-1, 1e-1, 1e-1};
 };
 
 struct RegistrationStop {

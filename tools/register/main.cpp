@@ -461,6 +461,7 @@ int run(const RunRequest& request) {
   const double max_marker_error = c.stop.max_marker_error.value_or(1e-3 * frame.scale);
   options.max_marker_error = max_marker_error / frame.scale;
   options.min_step = c.stop.min_step;
+  options.icp_weight_ramp = c.weights.icp_weight_ramp;
   if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
 
   // What a checkpoint must match to be resumed here: mode, mesh, markers, output surface, options.
@@ -486,6 +487,9 @@ int run(const RunRequest& request) {
                                {"max_iterations_per_stage", options.max_iterations_per_stage},
                                {"max_marker_error", tools::hex_double(options.max_marker_error)},
                                {"min_step", tools::hex_double(options.min_step)}};
+  for (const double f : options.icp_weight_ramp) {
+    identification["options"]["icp_weight_ramp"].push_back(tools::hex_double(f));
+  }
   const Outputs out{fs::path(request.out_dir)};
   if (request.resume) {
     if (const auto mismatch =
@@ -622,6 +626,7 @@ int run(const RunRequest& request) {
                        {"max_iterations_per_stage", options.max_iterations_per_stage},
                        {"max_marker_error", max_marker_error},
                        {"min_step", options.min_step},
+                       {"icp_weight_ramp", options.icp_weight_ramp},
                        {"mesh_cell_size_fraction", c.mesh.cell_size_fraction}};
   nlohmann::json iterations = nlohmann::json::array();
   for (const offline::GaussNewtonIteration& it : summary.iterations) {
