@@ -15,7 +15,9 @@
 #include <sstream>
 #include <utility>
 
+#include "offline/plastic_strain.hpp"
 #include "offline/plastic_strain_laplacian.hpp"
+#include "offline/rigid_motion.hpp"
 
 namespace sinew::offline {
 namespace {
@@ -140,8 +142,9 @@ class Registration {
     const bool landmarks =
         stage == RegistrationStage::kLandmarks ||
         (stage == RegistrationStage::kInitialFit && !constraints_.landmarks.empty());
-    const bool icp = stage == RegistrationStage::kIcpMarkers ||
-                     (stage == RegistrationStage::kInitialFit && constraints_.landmarks.empty());
+    const bool icp =
+        stage == RegistrationStage::kIcpMarkers ||
+        (stage == RegistrationStage::kInitialFit && (constraints_.landmarks.empty() || free_));
     if (landmarks) {
       for (PointConstraint c : constraints_.landmarks) {
         c.weight *= options_.alpha;
@@ -268,6 +271,29 @@ struct ConstantFitData {
   int evaluations = 0;
 };
 
+// Fp(a)·X for every rest vertex X, moved by the rigid motion that takes Fp(a_pose)·X to
+// x_pose (the pose of a shape of the same family; identity when that fit is undetermined).
+Eigen::VectorXd uniform_strain_equilibrium(const Eigen::VectorXd& rest,
+                                           const Eigen::Matrix<double, 6, 1>& a,
+                                           const Eigen::Matrix<double, 6, 1>& a_pose,
+                                           const Eigen::VectorXd& x_pose) {
+  const Eigen::Index n = rest.size() / 3;
+  const Eigen::Matrix3d Fp = plastic_strain_matrix(a);
+  const Eigen::Matrix3d Fp_pose = plastic_strain_matrix(a_pose);
+  std::vector<Eigen::Vector3d> from, to;
+  from.reserve(static_cast<std::size_t>(n));
+  to.reserve(static_cast<std::size_t>(n));
+  for (Eigen::Index v = 0; v < n; ++v) {
+    from.push_back(Fp_pose * rest.segment<3>(3 * v));
+    to.push_back(x_pose.segment<3>(3 * v));
+  }
+  const RigidTransform pose = fit_rigid_transform(from, to).value_or(RigidTransform{});
+  Eigen::VectorXd x(rest.size());
+  for (Eigen::Index v = 0; v < n; ++v)
+    x.segment<3>(3 * v) = pose.apply(Fp * rest.segment<3>(3 * v));
+  return x;
+}
+
 double constant_fit_objective(unsigned n, const double* a, double* /*gradient*/, void* data) {
   auto* fit = static_cast<ConstantFitData*>(data);
   Registration& r = *fit->registration;
@@ -278,6 +304,11 @@ double constant_fit_objective(unsigned n, const double* a, double* /*gradient*/,
   for (Eigen::Index t = 0; t < m; ++t) s_trial.segment<6>(6 * t) = a6;
   if (clamp_plastic_state_eigenvalues(s_trial).clamped_tets > 0) return 1e300;
   Eigen::VectorXd x_trial = fit->best_x;
+  // A free object under one uniform Fp has the stress-free equilibrium x = Fp·X (Fe = I) up to a
+  // rigid motion: start there, in the rigid pose of the best shape so far (best_x is such a shape
+  // too), and the Newton solve only confirms it. The attached case has no closed form.
+  if (r.free_object())
+    x_trial = uniform_strain_equilibrium(r.energy().rest_dofs(), a6, fit->best_a, fit->best_x);
   if (!r.solve_equilibrium(s_trial, x_trial)) return 1e300;
   // A free object takes its best rigid pose for this shape (block-coordinate descent, §3.6).
   if (r.free_object()) r.rigid_update(fit->stage, x_trial, rigid_rounds(fit->stage));
