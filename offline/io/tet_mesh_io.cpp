@@ -16,6 +16,7 @@
 #include <limits>
 #include <locale>
 #include <new>
+#include <optional>
 #include <sstream>
 
 #include "offline/io/io_common.hpp"
@@ -496,6 +497,238 @@ RawMesh read_tetgen(const std::string& path) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// VTK XML .vtu (ASCII UnstructuredGrid of tetrahedra, as write_vtu writes it)
+
+/// The text of a .vtu file with the few XML look-ups the reader needs; positions are byte
+/// offsets, turned into line numbers for messages.
+class VtuText {
+ public:
+  explicit VtuText(const std::string& path) : path_(path) {
+    try {
+      text_ = io::detail::read_whole_file(path);
+    } catch (const io::detail::ReadError& e) {
+      throw ReadError{e.message};
+    }
+  }
+
+  int line_of(std::size_t pos) const {
+    return 1 + static_cast<int>(std::count(
+                   text_.begin(),
+                   text_.begin() + static_cast<std::ptrdiff_t>(std::min(pos, text_.size())), '\n'));
+  }
+  [[noreturn]] void fail(std::size_t pos, const std::string& what) const {
+    throw ReadError{format_error(path_, line_of(pos), what)};
+  }
+
+  /// Start of the next "<name" tag (followed by a space, '>' or '/') at or after from, before
+  /// `limit`; npos if none.
+  std::size_t find_tag(const std::string& name, std::size_t from,
+                       std::size_t limit = std::string::npos) const {
+    const std::string open = "<" + name;
+    for (std::size_t pos = text_.find(open, from); pos != std::string::npos && pos < limit;
+         pos = text_.find(open, pos + 1)) {
+      const std::size_t after = pos + open.size();
+      if (after < text_.size() && (std::isspace(static_cast<unsigned char>(text_[after])) ||
+                                   text_[after] == '>' || text_[after] == '/'))
+        return pos;
+    }
+    return std::string::npos;
+  }
+  /// Position just after the '>' closing the tag that starts at pos.
+  std::size_t tag_end(std::size_t pos) const {
+    const std::size_t close = text_.find('>', pos);
+    if (close == std::string::npos) fail(pos, "unterminated XML tag (truncated file?)");
+    return close + 1;
+  }
+  /// Start of the closing "</name>" after from.
+  std::size_t find_close(const std::string& name, std::size_t from, std::size_t open_pos) const {
+    const std::size_t pos = text_.find("</" + name, from);
+    if (pos == std::string::npos)
+      fail(open_pos, "<" + name + "> is never closed (truncated file?)");
+    return pos;
+  }
+  /// Value of attribute `name` in the tag starting at pos, if present.
+  std::optional<std::string> attribute(std::size_t pos, const std::string& name) const {
+    const std::size_t end = tag_end(pos);
+    const std::string tag = text_.substr(pos, end - pos);
+    for (std::size_t at = tag.find(name + "="); at != std::string::npos;
+         at = tag.find(name + "=", at + 1)) {
+      if (at == 0 || !std::isspace(static_cast<unsigned char>(tag[at - 1]))) continue;
+      const std::size_t quote = at + name.size() + 1;
+      if (quote >= tag.size() || (tag[quote] != '"' && tag[quote] != '\'')) continue;
+      const std::size_t close = tag.find(tag[quote], quote + 1);
+      if (close == std::string::npos) fail(pos, "unterminated attribute " + name);
+      return tag.substr(quote + 1, close - quote - 1);
+    }
+    return std::nullopt;
+  }
+  int count_attribute(std::size_t pos, const std::string& tag, const std::string& name) const {
+    const auto value = attribute(pos, name);
+    if (!value) fail(pos, "<" + tag + "> has no " + name + " attribute");
+    long long n = 0;
+    if (!parse_integer(*value, n) || n < 0 || n > INT_MAX)
+      fail(pos, "invalid " + name + " " + quoted(*value));
+    return static_cast<int>(n);
+  }
+
+  struct Token {
+    std::string text;
+    int line = 0;
+  };
+  /// The whitespace-separated tokens of an ASCII <DataArray> starting at pos (its format must be
+  /// ascii) and the position after its closing tag.
+  std::vector<Token> data_array(std::size_t pos, const std::string& what,
+                                std::size_t* after) const {
+    const auto format = attribute(pos, "format");
+    if (format && *format != "ascii")
+      fail(pos, what + " DataArray has format=\"" + *format +
+                    "\"; only ASCII .vtu files (format=\"ascii\") are read");
+    const std::size_t begin = tag_end(pos);
+    if (text_[begin - 2] == '/') fail(pos, what + " DataArray is empty");
+    const std::size_t end = find_close("DataArray", begin, pos);
+    std::vector<Token> tokens;
+    int line = line_of(begin);
+    for (std::size_t i = begin; i < end;) {
+      const char c = text_[i];
+      if (c == '\n') ++line;
+      if (std::isspace(static_cast<unsigned char>(c))) {
+        ++i;
+        continue;
+      }
+      std::size_t j = i;
+      while (j < end && !std::isspace(static_cast<unsigned char>(text_[j]))) ++j;
+      tokens.push_back({text_.substr(i, j - i), line});
+      i = j;
+    }
+    *after = tag_end(end);
+    return tokens;
+  }
+
+  const std::string& text() const { return text_; }
+
+ private:
+  std::string path_;
+  std::string text_;
+};
+
+RawMesh read_vtu(const std::string& path) {
+  const VtuText vtu(path);
+  RawMesh raw;
+  raw.vertex_file = raw.tet_file = path;
+  raw.base = 0;
+  const std::size_t file_pos = vtu.find_tag("VTKFile", 0);
+  if (file_pos == std::string::npos) vtu.fail(0, "no <VTKFile> element (not a VTK XML file)");
+  const auto type = vtu.attribute(file_pos, "type");
+  if (!type || *type != "UnstructuredGrid")
+    vtu.fail(file_pos,
+             "VTKFile type " + quoted(type.value_or("(none)")) + ", only UnstructuredGrid is read");
+  if (vtu.attribute(file_pos, "compressor"))
+    vtu.fail(file_pos, "compressed .vtu files are not read (write ASCII)");
+  const std::size_t piece = vtu.find_tag("Piece", file_pos);
+  if (piece == std::string::npos) vtu.fail(file_pos, "no <Piece> element");
+  if (vtu.find_tag("Piece", piece + 1) != std::string::npos)
+    vtu.fail(vtu.find_tag("Piece", piece + 1), "a second <Piece>; only one piece is read");
+  const int num_points = vtu.count_attribute(piece, "Piece", "NumberOfPoints");
+  const int num_cells = vtu.count_attribute(piece, "Piece", "NumberOfCells");
+  const std::size_t piece_end = vtu.find_close("Piece", piece, piece);
+
+  // Points: one Float64/Float32 DataArray with 3 components.
+  const std::size_t points = vtu.find_tag("Points", piece, piece_end);
+  if (points == std::string::npos) vtu.fail(piece, "<Piece> has no <Points>");
+  const std::size_t points_array = vtu.find_tag("DataArray", points, piece_end);
+  if (points_array == std::string::npos) vtu.fail(points, "<Points> has no <DataArray>");
+  if (const auto nc = vtu.attribute(points_array, "NumberOfComponents"); nc && *nc != "3")
+    vtu.fail(points_array,
+             "Points DataArray has NumberOfComponents=" + quoted(*nc) + ", expected 3");
+  std::size_t after = 0;
+  const auto coordinates = vtu.data_array(points_array, "Points", &after);
+  if (coordinates.size() != 3 * static_cast<std::size_t>(num_points))
+    vtu.fail(points_array, "Points DataArray has " + std::to_string(coordinates.size()) +
+                               " numbers, expected 3 x NumberOfPoints = " +
+                               std::to_string(3 * static_cast<long long>(num_points)));
+  reserve_for(raw, num_points, num_cells);
+  const auto real = [&](const VtuText::Token& t, const char* what) {
+    double v = 0;
+    if (!parse_double(t.text, v))
+      throw ReadError{format_error(
+          path, t.line, std::string("expected a number ") + what + ", got " + quoted(t.text))};
+    return v;
+  };
+  const auto integer = [&](const VtuText::Token& t, const char* what) {
+    long long v = 0;
+    if (!parse_integer(t.text, v))
+      throw ReadError{format_error(
+          path, t.line, std::string("expected an integer ") + what + ", got " + quoted(t.text))};
+    return v;
+  };
+  for (std::size_t i = 0; i < static_cast<std::size_t>(num_points); ++i) {
+    raw.vertices.push_back({real(coordinates[3 * i], "(x)"), real(coordinates[3 * i + 1], "(y)"),
+                            real(coordinates[3 * i + 2], "(z)")});
+    raw.vertex_lines.push_back(coordinates[3 * i].line);
+  }
+
+  // Cells: connectivity, offsets, types (any order).
+  const std::size_t cells = vtu.find_tag("Cells", piece, piece_end);
+  if (cells == std::string::npos) vtu.fail(piece, "<Piece> has no <Cells>");
+  const std::size_t cells_end = vtu.find_close("Cells", cells, cells);
+  std::optional<std::vector<VtuText::Token>> connectivity, offsets, types;
+  std::size_t connectivity_pos = 0, offsets_pos = 0, types_pos = 0;
+  for (std::size_t pos = vtu.find_tag("DataArray", cells, cells_end); pos != std::string::npos;
+       pos = vtu.find_tag("DataArray", after, cells_end)) {
+    const std::string name = vtu.attribute(pos, "Name").value_or("");
+    if (name == "connectivity") {
+      connectivity = vtu.data_array(pos, name, &after);
+      connectivity_pos = pos;
+    } else if (name == "offsets") {
+      offsets = vtu.data_array(pos, name, &after);
+      offsets_pos = pos;
+    } else if (name == "types") {
+      types = vtu.data_array(pos, name, &after);
+      types_pos = pos;
+    } else {
+      after = vtu.tag_end(pos);
+    }
+  }
+  if (!connectivity) vtu.fail(cells, "<Cells> has no connectivity DataArray");
+  if (!offsets) vtu.fail(cells, "<Cells> has no offsets DataArray");
+  if (!types) vtu.fail(cells, "<Cells> has no types DataArray");
+  const auto n = static_cast<std::size_t>(num_cells);
+  if (types->size() != n)
+    vtu.fail(types_pos, "types DataArray has " + std::to_string(types->size()) +
+                            " values for NumberOfCells = " + std::to_string(n));
+  if (offsets->size() != n)
+    vtu.fail(offsets_pos, "offsets DataArray has " + std::to_string(offsets->size()) +
+                              " values for NumberOfCells = " + std::to_string(n));
+  for (std::size_t c = 0; c < n; ++c) {
+    const long long cell_type = integer((*types)[c], "(cell type)");
+    if (cell_type != 10)
+      throw ReadError{format_error(path, (*types)[c].line,
+                                   "cell " + std::to_string(c) + " has VTK type " +
+                                       std::to_string(cell_type) +
+                                       ", only tetrahedra (type 10) are read")};
+    const long long offset = integer((*offsets)[c], "(cell offset)");
+    if (offset != 4 * static_cast<long long>(c + 1))
+      throw ReadError{format_error(path, (*offsets)[c].line,
+                                   "cell " + std::to_string(c) + " ends at offset " +
+                                       std::to_string(offset) + ", expected " +
+                                       std::to_string(4 * (c + 1)) + " (4 vertices per tet)")};
+  }
+  if (connectivity->size() != 4 * n)
+    vtu.fail(connectivity_pos, "connectivity DataArray has " +
+                                   std::to_string(connectivity->size()) + " values, expected " +
+                                   std::to_string(4 * n) + " (4 per tet)");
+  for (std::size_t c = 0; c < n; ++c) {
+    std::array<long long, 4> t{};
+    for (std::size_t a = 0; a < 4; ++a)
+      t[a] = integer((*connectivity)[4 * c + a], "(vertex index)");
+    raw.tets.push_back(t);
+    raw.tet_labels.push_back(static_cast<long long>(c));
+    raw.tet_lines.push_back((*connectivity)[4 * c].line);
+  }
+  return raw;
+}
+
+// ---------------------------------------------------------------------------------------------
 // Validation
 
 std::string number(double v) {
@@ -643,11 +876,13 @@ TetMeshReadResult read_tet_mesh(const std::string& path, const TetMeshReadOption
       raw = read_veg(path);
     } else if (ext == ".node" || ext == ".ele") {
       raw = read_tetgen(path);
+    } else if (ext == ".vtu") {
+      raw = read_vtu(path);
     } else {
       TetMeshReadResult result;
       result.error = path + ": unknown tet-mesh extension " +
                      quoted(ext.empty() ? std::string("(none)") : ext) +
-                     " (expected .mesh, .veg, .node or .ele)";
+                     " (expected .mesh, .veg, .vtu, .node or .ele)";
       return result;
     }
     return validate(raw, options);

@@ -1,7 +1,8 @@
 #pragma once
 /// Tet-mesh readers and writers of the offline registration tool: Medit `.mesh` (ASCII), VegaFEM
-/// `.veg` (ASCII) and TetGen `.node`/`.ele` are read directly; Medit `.mesh` and VTK XML `.vtu`
-/// (ASCII UnstructuredGrid, for ParaView) are written.
+/// `.veg` (ASCII), TetGen `.node`/`.ele` and VTK XML `.vtu` (ASCII UnstructuredGrid of tets, as
+/// write_vtu and sinew-register's result.vtu) are read directly; Medit `.mesh` and `.vtu` (for
+/// ParaView) are written.
 ///
 /// Errors are never thrown: every failure is reported as ONE line "file:line: what is wrong"
 /// (just "file: what is wrong" when no line applies: unknown extension, unreadable file), e.g.
@@ -47,7 +48,9 @@ struct TetMeshReadResult {
 /// Vertices and Tetrahedra sections, 1-based, one reference label per entry; other sections are
 /// ignored), `.veg` (VegaFEM: *VERTICES and *ELEMENTS/TET; other sections are ignored), `.node` or
 /// `.ele` (TetGen: both "<base>.node" and "<base>.ele" are read; numbering from 0 or 1, taken from
-/// the first vertex index).
+/// the first vertex index), `.vtu` (VTK XML UnstructuredGrid, one Piece, format="ascii" DataArrays:
+/// Points with 3 components, Cells connectivity/offsets/types with every type 10 = VTK_TETRA;
+/// point and cell data are ignored; binary, appended and compressed files are reported).
 TetMeshReadResult read_tet_mesh(const std::string& path, const TetMeshReadOptions& options = {});
 
 /// Per-tet scalar fields for write_vtu: (name, one value per tet).

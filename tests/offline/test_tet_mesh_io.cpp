@@ -236,6 +236,57 @@ TEST(TetMeshIo, VtuWritesMultiComponentCellFields) {
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.vtu"));
 }
 
+TEST(TetMeshIo, VtuRoundTripKeepsMeshAndFullPrecision) {
+  const auto dir = scratch_dir("tet_mesh_io_vtu_read");
+  TetMesh box = box_mesh();
+  // Coordinates that need all 17 digits, moved off the grid.
+  box.vertices.col(0) *= 1.0 / 3.0;
+  box.vertices.col(1).array() += 0.1;
+  box.vertices(5, 2) += 1e-9;
+  Eigen::VectorXd per_tet = Eigen::VectorXd::LinSpaced(box.tets.rows(), 0.0, 1.0);
+  ASSERT_TRUE(
+      sinew::offline::write_vtu((dir / "box.vtu").string(), box, {{"volume_ratio", per_tet}}));
+  expect_same_mesh(read_tet_mesh((dir / "box.vtu").string()), box);
+  // Upper-case extension, and a field with several components in the file.
+  Eigen::MatrixXd tensor = Eigen::MatrixXd::Ones(box.tets.rows(), 9);
+  ASSERT_TRUE(
+      sinew::offline::write_vtu_cell_fields((dir / "tensor.VTU").string(), box, {{"Fp", tensor}}));
+  expect_same_mesh(read_tet_mesh((dir / "tensor.VTU").string()), box);
+}
+
+TEST(TetMeshIo, VtuErrorsNameFileAndLine) {
+  const auto dir = scratch_dir("tet_mesh_io_vtu_errors");
+  const TetMesh box = box_mesh();
+  ASSERT_TRUE(sinew::offline::write_vtu((dir / "good.vtu").string(), box));
+  const std::string good = sinew::testing::read_text(dir / "good.vtu");
+  // write_vtu's layout: line 4 is <Piece>, line 6 the Points DataArray, the first point on 7.
+  const int first_point_line = 7;
+  const int connectivity_line = first_point_line + static_cast<int>(box.vertices.rows()) + 3;
+  const int first_tet_line = connectivity_line + 1;
+  const int types_line = first_tet_line + static_cast<int>(box.tets.rows()) + 6;  // 3 offset rows
+
+  expect_error(dir / "types.vtu", replace(good, "10 10 10", "10 12 10"),
+               std::to_string(types_line + 1) +
+                   ": cell 1 has VTK type 12, only tetrahedra (type "
+                   "10) are read");
+  expect_error(dir / "binary.vtu",
+               replace(good, "NumberOfComponents=\"3\" format=\"ascii\"",
+                       "NumberOfComponents=\"3\" format=\"binary\""),
+               "6: Points DataArray has format=\"binary\"; only ASCII .vtu files "
+               "(format=\"ascii\") are read");
+  expect_error(dir / "count.vtu", replace(good, "NumberOfPoints=\"27\"", "NumberOfPoints=\"28\""),
+               "6: Points DataArray has 81 numbers, expected 3 x NumberOfPoints = 84");
+  expect_error(dir / "index.vtu", replace(good, "          0 1 4 13\n", "          0 1 4 27\n"),
+               std::to_string(first_tet_line) +
+                   ": element 0 references vertex 27, but there are 27 vertices (numbered from 0)");
+  expect_error(dir / "number.vtu", replace(good, "          0 0 0\n", "          0 zero 0\n"),
+               std::to_string(first_point_line) + ": expected a number (y), got 'zero'");
+  expect_error(dir / "truncated.vtu", good.substr(0, good.find("</Points>")),
+               "4: <Piece> is never closed (truncated file?)");
+  expect_error(dir / "polydata.vtu", replace(good, "UnstructuredGrid", "PolyData"),
+               "2: VTKFile type 'PolyData', only UnstructuredGrid is read");
+}
+
 TEST(TetMeshIo, VegOneTetReads) {
   const auto dir = scratch_dir("tet_mesh_io_veg_one");
   write_text(dir / "one.veg", kOneTetVeg + "\n*SET s\n1\n*MATERIAL m\nENU, 1, 2, 0.3\n");
@@ -324,7 +375,7 @@ TEST(TetMeshIo, UnknownExtensionAndUnreadableFileAreReported) {
   EXPECT_FALSE(r.ok());
   EXPECT_EQ(r.error,
             (dir / "m.obj").string() +
-                ": unknown tet-mesh extension '.obj' (expected .mesh, .veg, .node or .ele)");
+                ": unknown tet-mesh extension '.obj' (expected .mesh, .veg, .vtu, .node or .ele)");
 
   r = read_tet_mesh((dir / "absent.veg").string());
   EXPECT_FALSE(r.ok());
