@@ -173,8 +173,14 @@ TEST(SinewLabel, GluteusMediusCaseEndToEnd) {
   r = run_tool("cd " + dir.string() + " && " + kLabel + " surface " + left + " --out target.obj",
                dir);
   ASSERT_EQ(r.exit_status, 0) << r.err;
-  std::ofstream(dir / "case.json")
-      << R"({"template": "template.obj", "units": "mm", "icp_markers": "markers.csv"})";
+  // The case names its scan: sinew-register writes the cross-sections itself (OUTDIR/slices).
+  nlohmann::json c = {
+      {"template", "template.obj"},
+      {"units", "mm"},
+      {"icp_markers", "markers.csv"},
+      {"scan_image",
+       {{"image", (data / "example_ct.nii.gz").string()}, {"mask", left}, {"slices", 3}}}};
+  std::ofstream(dir / "case.json") << c.dump(1);
   r = run_tool(
       "cd " + dir.string() + " && " + kRegister + " --case case.json --out out --truth target.obj",
       dir);
@@ -188,6 +194,12 @@ TEST(SinewLabel, GluteusMediusCaseEndToEnd) {
   std::printf("gluteus medius: result to the left muscle's surface mean %.2f mm, back %.2f mm\n",
               to_truth, from_truth);
   EXPECT_LT(0.5 * (to_truth + from_truth), 1.5);  // half a 3 mm voxel
+  // The tool's own cross-sections: 3 PNGs, each cut within two voxels of the mask's outline.
+  ASSERT_EQ(report.at("slices").size(), 3u) << report.dump(1);
+  for (const auto& slice : report.at("slices")) {
+    EXPECT_TRUE(fs::exists(dir / slice.at("file").get<std::string>())) << slice;  // rel. to dir
+    EXPECT_LT(slice.at("mean_distance_to_mask_outline").get<double>(), 6.0) << slice;
+  }
   r = run_tool("cd " + dir.string() + " && " + kLabel + " slices " +
                    (data / "example_ct.nii.gz").string() + " --mask " + left +
                    " --surface out/result_surface.obj --count 4 --out slices",

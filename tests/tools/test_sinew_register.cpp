@@ -492,6 +492,20 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
        "case.json: unknown key 'alhpa' in weights (expected one of: alpha, beta, "
        "attachment_stiffness, icp_weight_ramp)",
        "case.json"},
+      {"scan_image_missing",
+       with([](auto& j) {
+         j["scan_image"] = {{"image", "missing.nii.gz"}};
+       }),
+       {},
+       "missing.nii.gz: cannot open",
+       "missing.nii.gz"},
+      {"scan_image_without_image",
+       with([](auto& j) {
+         j["scan_image"] = {{"slices", 3}};
+       }),
+       {},
+       "case.json: scan_image needs \"image\"",
+       "case.json"},
       {"ramp_factor_out_of_range",
        with([](auto& j) {
          j["weights"] = {{"icp_weight_ramp", {0.01, 2.0}}};

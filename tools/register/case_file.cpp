@@ -40,6 +40,16 @@ std::string resolve(const std::string& case_path, const JsonCursor& field) {
   return (fs::path(case_path).parent_path() / p).lexically_normal().string();
 }
 
+// An integer field in [lo, hi]; otherwise a one-line error naming the field and the range.
+int integer_in(const JsonCursor& field, long lo, long hi) {
+  const long v = field.integer();
+  if (v < lo || v > hi) {
+    field.fail("= " + std::to_string(v) + " must be in [" + std::to_string(lo) + ", " +
+               std::to_string(hi) + "]");
+  }
+  return static_cast<int>(v);
+}
+
 Eigen::Vector3d parse_xyz(const JsonCursor& c) {
   if (!c.value().is_array() || c.value().size() != 3) c.fail("must be [x, y, z]");
   return {c.at(std::size_t{0}).finite_number(), c.at(std::size_t{1}).finite_number(),
@@ -183,12 +193,8 @@ void parse_mesh_options(const JsonCursor& m, offline::TetMesherOptions& o) {
   flag("perturb", o.perturb);
   flag("exude", o.exude);
   flag("protect_sharp_features", o.protect_sharp_features);
-  if (m.has("smoothing_iterations")) {
-    const long v = m.at("smoothing_iterations").integer();
-    if (v < 1 || v > 1000)
-      m.at("smoothing_iterations").fail("= " + std::to_string(v) + " must be in [1, 1000]");
-    o.smoothing_iterations = static_cast<int>(v);
-  }
+  if (m.has("smoothing_iterations"))
+    o.smoothing_iterations = integer_in(m.at("smoothing_iterations"), 1, 1000);
   if (m.has("random_seed")) {
     const long v = m.at("random_seed").integer();
     if (v < 0 || v > 4294967295L) m.at("random_seed").fail("must be in [0, 2^32)");
@@ -222,7 +228,7 @@ RegistrationCase read_registration_case(const std::string& path) {
   const nlohmann::json doc = read_json_file(path);
   const JsonCursor root(doc, path);
   root.expect_keys({"template", "units", "mesh", "attachments", "landmarks", "icp_markers",
-                    "weights", "stop", "transfer"});
+                    "weights", "stop", "transfer", "scan_image"});
   RegistrationCase c;
   c.case_path = path;
   c.template_path = resolve(path, root.at("template"));
@@ -264,6 +270,24 @@ RegistrationCase read_registration_case(const std::string& path) {
     for (std::size_t i = 0; i < t.array_size(); ++i)
       c.transfer_paths.push_back(resolve(path, t.at(i)));
   }
+  if (root.has("scan_image")) {
+    const JsonCursor si = root.at("scan_image");
+    si.expect_keys({"image", "mask", "label", "slices", "window"});
+    RegistrationCase::ScanImage scan;
+    if (!si.has("image")) si.fail("needs \"image\": the scan the slices are cut from");
+    scan.image = resolve(path, si.at("image"));
+    if (si.has("mask")) scan.mask = resolve(path, si.at("mask"));
+    if (si.has("label")) scan.label = static_cast<int>(si.at("label").integer());
+    if (si.has("slices")) scan.slices = integer_in(si.at("slices"), 1, 1000);
+    if (si.has("window")) {
+      const JsonCursor w = si.at("window");
+      if (!w.value().is_array() || w.array_size() != 2) w.fail("must be [low, high]");
+      scan.window_low = w.at(0).finite_number();
+      scan.window_high = w.at(1).finite_number();
+      if (!(scan.window_high > scan.window_low)) w.fail("must have low < high");
+    }
+    c.scan_image = scan;
+  }
   if (root.has("weights")) {
     const JsonCursor w = root.at("weights");
     w.expect_keys({"alpha", "beta", "attachment_stiffness", "icp_weight_ramp"});
@@ -290,10 +314,7 @@ RegistrationCase read_registration_case(const std::string& path) {
     const JsonCursor s = root.at("stop");
     s.expect_keys({"max_iterations", "max_marker_error", "min_step"});
     if (s.has("max_iterations")) {
-      const long v = s.at("max_iterations").integer();
-      if (v < 0 || v > 100000)
-        s.at("max_iterations").fail("= " + std::to_string(v) + " must be in [0, 100000]");
-      c.stop.max_iterations_per_stage = static_cast<int>(v);
+      c.stop.max_iterations_per_stage = integer_in(s.at("max_iterations"), 0, 100000);
     }
     if (s.has("max_marker_error")) {
       const double v = s.at("max_marker_error").finite_number();

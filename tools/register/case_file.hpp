@@ -21,6 +21,11 @@
 ///   "landmarks": PAIRS,             // optional: points with known correspondence
 ///   "icp_markers": POINTS,          // optional: scan points without correspondence (ICP)
 ///   "transfer": ["hires.obj"],      // optional: surfaces in the template's frame to carry along
+///   "scan_image": {                 // optional: cross-section PNGs of the result over the scan
+///     "image": "ct.nii.gz",         // NIfTI / INRIA, world coordinates in the case's units
+///     "mask": "mask.nii.gz",        // optional: its outline drawn in green, distances reported
+///     "label": 1, "slices": 6, "window": [-160, 240]   // optional
+///   },
 ///   "weights": {                    // optional; in the normalised frame (see below)
 ///     "alpha": 1e5, "beta": 1e4 or 0 (see RegistrationWeights), "attachment_stiffness": 10
 ///   },
@@ -110,6 +115,16 @@ struct RegistrationCase {
   /// Surfaces in the template's frame carried along by the deformation (seed 003 §4.3, the
   /// textured liver): written as OUTDIR/transfer_<name> (tools/register/transfer.hpp).
   std::vector<std::string> transfer_paths;
+  /// "scan_image": OUTDIR/slices/slice_kNNN.png of the result's cross-sections (seed 003 Fig. 18,
+  /// tools/label/slice_pictures.hpp).
+  struct ScanImage {
+    std::string image;  ///< resolved path
+    std::string mask;   ///< resolved path, empty when none
+    int label = -1;
+    int slices = 6;
+    double window_low = -160, window_high = 240;
+  };
+  std::optional<ScanImage> scan_image;
   std::string coordinate_system;   ///< "RAS"/"LPS" when a marker file said so, else ""
   std::vector<std::string> notes;  ///< things the user should know (conversions, skipped points)
   RegistrationWeights weights;

@@ -57,11 +57,13 @@
 #include "offline/gauss_newton.hpp"
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/io/tet_mesh_io.hpp"
+#include "offline/io/volume_image_io.hpp"
 #include "offline/meshing/tet_mesher.hpp"
 #include "offline/plastic_elastic_energy.hpp"
 #include "offline/plastic_strain.hpp"
 #include "offline/surface_closest_point.hpp"
 #include "tools/io/json_file.hpp"
+#include "tools/label/slice_pictures.hpp"
 #include "tools/register/batch.hpp"
 #include "tools/register/case_file.hpp"
 #include "tools/register/checkpoint_file.hpp"
@@ -276,6 +278,26 @@ int run(const RunRequest& request) {
     truth = std::move(*r.mesh);
     log.line("truth: {}, {} vertices, {} triangles", request.truth_path, truth->vertices.rows(),
              truth->triangles.rows());
+  }
+  // "scan_image": read now, so that a bad image fails before any work.
+  std::optional<offline::io::VolumeImage> scan_image, scan_mask;
+  if (c.scan_image) {
+    auto read_image = [&](const std::string& path) {
+      offline::io::VolumeImageReadResult r = offline::io::read_volume_image(path);
+      if (!r.image) throw tools::InputError(r.error);
+      return std::move(*r.image);
+    };
+    scan_image = read_image(c.scan_image->image);
+    if (!c.scan_image->mask.empty()) {
+      scan_mask = read_image(c.scan_image->mask);
+      if (scan_mask->size != scan_image->size) {
+        throw tools::InputError(c.scan_image->mask + ": its voxel grid differs from " +
+                                c.scan_image->image + "'s");
+      }
+    }
+    log.line("scan image: {}, {} x {} x {} voxels{}", c.scan_image->image, scan_image->size.x(),
+             scan_image->size.y(), scan_image->size.z(),
+             scan_mask ? ", mask " + c.scan_image->mask : std::string());
   }
   const Eigen::MatrixXd template_vertices =
       c.template_is_tet_mesh ? Eigen::MatrixXd(tet_mesh.vertices) : surface.vertices;
@@ -521,6 +543,10 @@ int run(const RunRequest& request) {
     std::error_code ec;
     fs::remove(stale, ec);
   }
+  {
+    std::error_code ec;
+    fs::remove_all(out.dir / "slices", ec);
+  }
   tools::RegisterCheckpoint checkpoint;
   checkpoint.case_path = request.case_path;
   checkpoint.case_file = fs::absolute(request.case_file).string();
@@ -763,6 +789,29 @@ int run(const RunRequest& request) {
                                 return frame.to_user(q.transpose()).row(0).transpose();
                               });
       written.push_back(target.string());
+    }
+
+    // Fig. 18: the result's cross-sections over the scan.
+    if (scan_image) {
+      tools::SlicePictureOptions slice_options;
+      slice_options.count = c.scan_image->slices;
+      slice_options.label = c.scan_image->label;
+      slice_options.window_low = c.scan_image->window_low;
+      slice_options.window_high = c.scan_image->window_high;
+      nlohmann::json slices = nlohmann::json::array();
+      for (const tools::SlicePicture& picture :
+           tools::write_slice_pictures(*scan_image, scan_mask ? &*scan_mask : nullptr, deformed,
+                                       (out.dir / "slices").string(), slice_options)) {
+        nlohmann::json entry = {{"file", picture.file}, {"k", picture.k}};
+        if (picture.mean_distance) {
+          entry["mean_distance_to_mask_outline"] = *picture.mean_distance;
+          log.line("slice k = {}: cross-section {:.3g} {} from the mask's outline on average",
+                   picture.k, *picture.mean_distance, unit.empty() ? "units" : unit);
+        }
+        slices.push_back(entry);
+        written.push_back(picture.file);
+      }
+      report["slices"] = slices;
     }
 
     // Figs. 16 and 9: the final marker errors' histogram and the convergence plot.
