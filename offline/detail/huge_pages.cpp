@@ -5,7 +5,9 @@
 #include <cstdint>
 
 namespace sinew::offline::detail {
+namespace {
 
+// Only useful before the memory is first written; the call can fail without harm.
 void advise_huge_pages(double* data, Eigen::Index count) {
 #ifdef MADV_HUGEPAGE
   constexpr std::uintptr_t kHuge = std::uintptr_t{1} << 21;
@@ -20,6 +22,8 @@ void advise_huge_pages(double* data, Eigen::Index count) {
   (void)count;
 #endif
 }
+
+}  // namespace
 
 Eigen::MatrixXd large_matrix(Eigen::Index rows, Eigen::Index cols) {
   Eigen::MatrixXd matrix(rows, cols);

@@ -7,12 +7,9 @@
 
 namespace sinew::offline::detail {
 
-/// Asks the kernel (madvise MADV_HUGEPAGE) to back the whole 2 MiB-aligned part of
-/// [data, data + count) with huge pages. Only useful before the memory is first written; a no-op
-/// where the advice is not available (the call can fail without harm).
-void advise_huge_pages(double* data, Eigen::Index count);
-
-/// A rows x cols matrix, not initialised, advised as above before anything touches it.
+/// A rows x cols matrix, not initialised, whose 2 MiB-aligned part the kernel is asked (madvise
+/// MADV_HUGEPAGE) to back with huge pages before anything touches it; where the advice is not
+/// available the matrix is just a matrix.
 Eigen::MatrixXd large_matrix(Eigen::Index rows, Eigen::Index cols);
 
 }  // namespace sinew::offline::detail

@@ -16,7 +16,7 @@
 #include "common/fem/tet4.hpp"
 #include "offline/constraints.hpp"
 #include "offline/io/tet_mesh_io.hpp"
-#include "tests/support/tet_mesh_fixtures.hpp"
+#include "tests/support/offline_fixtures.hpp"
 
 namespace {
 
@@ -24,15 +24,7 @@ using sinew::offline::InterpenetrationOptions;
 using sinew::offline::InterpenetrationStatus;
 using sinew::offline::InterpenetrationSummary;
 using sinew::offline::TetMesh;
-
-TetMesh box(int nx, int ny, int nz, double h, const Eigen::Vector3d& origin) {
-  const auto fixture = sinew::testing::make_box_mesh(nx, ny, nz, h);
-  TetMesh mesh;
-  mesh.vertices = fixture.rest_positions;
-  mesh.vertices.rowwise() += origin.transpose();
-  mesh.tets = fixture.tets;
-  return mesh;
-}
+using sinew::testing::offline_box_mesh;
 
 /// Boundary vertices of `mesh` inside `other`, by a brute-force point-in-tet test independent of
 /// the module's detection (its own locator on the other's current positions, no bounding-box
@@ -146,8 +138,8 @@ void expect_far_vertices_fixed(const TetMesh& before, const TetMesh& after, doub
 // that no faces are coplanar.
 TEST(Interpenetration, OverlappingBoxesAreSeparatedLocally) {
   const double overlap = 0.045;
-  TetMesh a = box(12, 5, 5, 0.1, {0.0, 0.0, 0.0});
-  TetMesh b = box(12, 7, 7, 0.1, {1.2 - overlap, -0.15, -0.15});
+  TetMesh a = offline_box_mesh(12, 5, 5, 0.1, {0.0, 0.0, 0.0});
+  TetMesh b = offline_box_mesh(12, 7, 7, 0.1, {1.2 - overlap, -0.15, -0.15});
   const TetMesh a0 = a, b0 = b;
 
   const auto before_a = sinew::offline::find_penetrations(a, b);
@@ -181,8 +173,8 @@ TEST(Interpenetration, OverlappingBoxesAreSeparatedLocally) {
 // A tilted bar whose lowest corner dips 0.04 into the top face of a larger slab: an oblique contact
 // on a corner, where the slab's side of the contact has few or no vertices inside the bar.
 TEST(Interpenetration, RotatedBoxCornerIsPushedOutOfSlab) {
-  TetMesh slab = box(12, 12, 3, 0.1, {-0.6, -0.6, -0.3});  // top face z = 0
-  TetMesh bar = box(3, 3, 6, 0.1, {-0.15, -0.15, 0.0});
+  TetMesh slab = offline_box_mesh(12, 12, 3, 0.1, {-0.6, -0.6, -0.3});  // top face z = 0
+  TetMesh bar = offline_box_mesh(3, 3, 6, 0.1, {-0.15, -0.15, 0.0});
   // Tilt the bar 30 degrees about x and 20 about y around its base centre, then lower it so that
   // its lowest corner is 0.04 below the slab's top face.
   const Eigen::Matrix3d R = (Eigen::AngleAxisd(0.35, Eigen::Vector3d::UnitY()) *
@@ -249,8 +241,8 @@ TEST(Interpenetration, OverlappingToriAreSeparated) {
 }
 
 TEST(Interpenetration, SeparatePairIsReturnedUnchanged) {
-  TetMesh a = box(3, 3, 3, 0.1, {0.0, 0.0, 0.0});
-  TetMesh b = box(3, 3, 3, 0.1, {0.31, 0.0, 0.0});
+  TetMesh a = offline_box_mesh(3, 3, 3, 0.1, {0.0, 0.0, 0.0});
+  TetMesh b = offline_box_mesh(3, 3, 3, 0.1, {0.31, 0.0, 0.0});
   const TetMesh a0 = a, b0 = b;
   const InterpenetrationSummary s = sinew::offline::remove_interpenetration(a, b);
   std::cout << s.brief_report() << "\n";
@@ -265,8 +257,8 @@ TEST(Interpenetration, SeparatePairIsReturnedUnchanged) {
 }
 
 TEST(Interpenetration, InvalidOptionsAndMeshesAreReported) {
-  TetMesh a = box(2, 2, 2, 0.1, {0.0, 0.0, 0.0});
-  TetMesh b = box(2, 2, 2, 0.1, {0.15, 0.0, 0.0});
+  TetMesh a = offline_box_mesh(2, 2, 2, 0.1, {0.0, 0.0, 0.0});
+  TetMesh b = offline_box_mesh(2, 2, 2, 0.1, {0.15, 0.0, 0.0});
   const TetMesh a0 = a, b0 = b;
   InterpenetrationOptions options;
   options.ring_size = -1;

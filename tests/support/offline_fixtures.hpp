@@ -1,6 +1,6 @@
 #pragma once
-/// Shared pieces of the offline/ tests: a soft-tissue material, material points at vertices, and a
-/// free block with a non-uniform plastic field.
+/// Shared pieces of the offline/ tests: box meshes in the offline tools' format, a soft-tissue
+/// material, material points at vertices, and a free block with a non-uniform plastic field.
 
 #include <gtest/gtest.h>
 
@@ -11,11 +11,23 @@
 #include "common/fem/sparse_assembly.hpp"
 #include "common/material/stable_neo_hookean.hpp"
 #include "offline/constraints.hpp"
+#include "offline/io/tet_mesh_io.hpp"
 #include "offline/plastic_elastic_energy.hpp"
 #include "offline/plastic_strain.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
 
 namespace sinew::testing {
+
+/// make_box_mesh as the offline tools' TetMesh, its corner (0, 0, 0) moved to origin.
+inline offline::TetMesh offline_box_mesh(int nx, int ny, int nz, double h,
+                                         const Eigen::Vector3d& origin) {
+  const TetMesh fixture = make_box_mesh(nx, ny, nz, h);
+  offline::TetMesh mesh;
+  mesh.vertices = fixture.rest_positions;
+  mesh.vertices.rowwise() += origin.transpose();
+  mesh.tets = fixture.tets;
+  return mesh;
+}
 
 /// E = 10 kPa, ν = 0.4: the order of magnitude of muscle and liver tissue.
 inline common::StableNeoHookean soft_tissue() {

@@ -10,27 +10,19 @@
 #include "offline/constraints.hpp"
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/io/tet_mesh_io.hpp"
+#include "tests/support/offline_fixtures.hpp"
 #include "tests/support/run_tool.hpp"
-#include "tests/support/tet_mesh_fixtures.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 using sinew::offline::TetMesh;
+using sinew::testing::offline_box_mesh;
 using sinew::testing::read_text;
 using sinew::testing::run_tool;
 using sinew::testing::scratch_dir;
 
 const std::string kTool = std::string(SINEW_BINARY_DIR) + "/tools/sinew-separate";
-
-TetMesh box(int nx, int ny, int nz, double h, const Eigen::Vector3d& origin) {
-  const auto fixture = sinew::testing::make_box_mesh(nx, ny, nz, h);
-  TetMesh mesh;
-  mesh.vertices = fixture.rest_positions;
-  mesh.vertices.rowwise() += origin.transpose();
-  mesh.tets = fixture.tets;
-  return mesh;
-}
 
 /// Vertices of `mesh` strictly inside `other` (point-in-tet on other's tets; any vertex, so it
 /// needs no boundary extraction; an inner vertex of one box cannot be inside the other without a
@@ -53,8 +45,8 @@ int vertices_inside(const TetMesh& mesh, const TetMesh& other) {
 // the overlap, so the way out is along x).
 TEST(SinewSeparate, OverlappingBoxesAreSeparated) {
   const auto dir = scratch_dir("sinew_separate_boxes");
-  const TetMesh a = box(12, 5, 5, 1.0, {0.0, 0.0, 0.0});
-  const TetMesh b = box(8, 7, 7, 1.0, {12.0 - 0.45, -1.5, -1.5});
+  const TetMesh a = offline_box_mesh(12, 5, 5, 1.0, {0.0, 0.0, 0.0});
+  const TetMesh b = offline_box_mesh(8, 7, 7, 1.0, {12.0 - 0.45, -1.5, -1.5});
   ASSERT_GT(vertices_inside(a, b), 0);
   ASSERT_TRUE(sinew::offline::write_vtu((dir / "a.vtu").string(), a));
   ASSERT_TRUE(sinew::offline::write_medit_mesh((dir / "b.mesh").string(), b));
@@ -103,8 +95,8 @@ TEST(SinewSeparate, OverlappingBoxesAreSeparated) {
 
 TEST(SinewSeparate, DisjointMeshesAreWrittenUnchanged) {
   const auto dir = scratch_dir("sinew_separate_disjoint");
-  const TetMesh a = box(3, 3, 3, 1.0, {0.0, 0.0, 0.0});
-  const TetMesh b = box(3, 3, 3, 1.0, {3.5, 0.0, 0.0});
+  const TetMesh a = offline_box_mesh(3, 3, 3, 1.0, {0.0, 0.0, 0.0});
+  const TetMesh b = offline_box_mesh(3, 3, 3, 1.0, {3.5, 0.0, 0.0});
   ASSERT_TRUE(sinew::offline::write_medit_mesh((dir / "a.mesh").string(), a));
   ASSERT_TRUE(sinew::offline::write_medit_mesh((dir / "b.mesh").string(), b));
   const auto out = dir / "out";
@@ -124,7 +116,7 @@ TEST(SinewSeparate, DisjointMeshesAreWrittenUnchanged) {
 
 TEST(SinewSeparate, BadInputIsOneLineAndCreatesNothing) {
   const auto dir = scratch_dir("sinew_separate_bad");
-  const TetMesh a = box(2, 2, 2, 1.0, {0.0, 0.0, 0.0});
+  const TetMesh a = offline_box_mesh(2, 2, 2, 1.0, {0.0, 0.0, 0.0});
   ASSERT_TRUE(sinew::offline::write_medit_mesh((dir / "a.mesh").string(), a));
   const auto out = dir / "out";
 
