@@ -26,20 +26,48 @@ struct CentrelinePoint {
 /// tangents R(θ)·T (two sines and cosines). Evaluated once per element and state, then shared by
 /// all of the element's sample points (the per-point work is then a few multiply-adds).
 struct HermiteElement {
-  double L0 = 0.0;                              ///< reference chord length, pixels
-  Eigen::Vector2d D = Eigen::Vector2d::Zero();  ///< unit reference chord direction
-  Eigen::Vector2d x1, x2;                       ///< current end positions, pixels
-  Eigen::Vector2d t1, t2;                       ///< current unit end tangents R(θ_i)·T_i
+  double L0 = 0.0;                               ///< reference chord length, pixels
+  Eigen::Vector2d D = Eigen::Vector2d::Zero();   ///< unit reference chord direction
+  Eigen::Vector2d x1 = Eigen::Vector2d::Zero();  ///< current first end position, pixels
+  Eigen::Vector2d x2 = Eigen::Vector2d::Zero();  ///< current second end position, pixels
+  Eigen::Vector2d t1 = Eigen::Vector2d::Zero();  ///< current unit end tangent R(θ₁)·T₁
+  Eigen::Vector2d t2 = Eigen::Vector2d::Zero();  ///< current unit end tangent R(θ₂)·T₂
 };
 
-/// The ξ-independent part of hermite_centreline (same arguments). No allocation.
+/// The ξ-independent part of hermite_centreline (same arguments). `previous`, when given, is the
+/// element before this one at the same state: its end tangent is this one's start tangent (one
+/// sine and cosine per node instead of two). No allocation.
 HermiteElement hermite_element(const Eigen::Vector2d& X1,
                                const common::BeamElementReference& reference,
                                const Eigen::Vector2d& T1, const Eigen::Vector2d& T2,
-                               const common::Vector6d& u_e);
+                               const common::Vector6d& u_e,
+                               const HermiteElement* previous = nullptr);
 
-/// The centreline point at ξ of an element prepared by hermite_element. No allocation.
-CentrelinePoint hermite_point(const HermiteElement& element, double xi);
+/// The centreline point at ξ of an element prepared by hermite_element. No allocation. Inline:
+/// the tracker evaluates it at every sample point once per Newton step.
+inline CentrelinePoint hermite_point(const HermiteElement& h, double xi) {
+  const double L0 = h.L0;
+  const Eigen::Vector2d dt1(-h.t1.y(), h.t1.x()), dt2(-h.t2.y(), h.t2.x());  // ∂t/∂θ
+
+  const double xi2 = xi * xi, xi3 = xi2 * xi;
+  const double h00 = 2 * xi3 - 3 * xi2 + 1, h10 = xi3 - 2 * xi2 + xi;
+  const double h01 = -2 * xi3 + 3 * xi2, h11 = xi3 - xi2;
+  const double d00 = 6 * xi2 - 6 * xi, d10 = 3 * xi2 - 4 * xi + 1;
+  const double d01 = -6 * xi2 + 6 * xi, d11 = 3 * xi2 - 2 * xi;
+
+  CentrelinePoint p;
+  p.position = h00 * h.x1 + h10 * L0 * h.t1 + h01 * h.x2 + h11 * L0 * h.t2;
+  Eigen::Vector2d tangent = d00 * h.x1 + d10 * L0 * h.t1 + d01 * h.x2 + d11 * L0 * h.t2;
+  const double norm = tangent.norm();
+  tangent = norm > 0 ? Eigen::Vector2d(tangent / norm) : h.D;
+  p.normal = Eigen::Vector2d(-tangent.y(), tangent.x());
+  p.jacobian.setZero();
+  p.jacobian(0, 0) = p.jacobian(1, 1) = h00;
+  p.jacobian(0, 3) = p.jacobian(1, 4) = h01;
+  p.jacobian.col(2) = h10 * L0 * dt1;
+  p.jacobian.col(5) = h11 * L0 * dt2;
+  return p;
+}
 
 /// Evaluates the Hermite centreline of an element at ξ. X1: reference position of the first node;
 /// T1, T2: unit reference tangents at its two nodes; u_e: the element's six dofs. No allocation.

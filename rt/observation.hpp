@@ -51,6 +51,14 @@ void sample_profile(const ImageView& image, const Eigen::Vector2d& centre,
                     const Eigen::Vector2d& normal, int first, int count, int band_px,
                     float* profile);
 
+/// Asks the memory system for the pixels that sample_profile(image, centre, normal, first, count,
+/// ·) reads (a software prefetch of each pixel row the line crosses; results do not change). A
+/// camera frame arrives outside the cache: prefetching a search line or two ahead overlaps those
+/// misses with the sampling (measured: about a tenth of the tracker's per-frame time). No
+/// allocation.
+void prefetch_profile(const ImageView& image, const Eigen::Vector2d& centre,
+                      const Eigen::Vector2d& normal, int first, int count);
+
 /// Finds the candidates of one search line on a profile read by sample_profile: profile[origin + k]
 /// is the sample at offset k, and must exist for |k| ≤ range_px + margin(). Offsets are searched
 /// over |k| ≤ range_px and reported as k + δ − shift (δ the sub-pixel peak, shift the line centre's

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "rt/centreline.hpp"
+#include "rt/detail/order_statistic.hpp"
 
 namespace sinew::rt {
 
@@ -353,8 +354,11 @@ void Tracker::evaluate_points() {
   for (std::size_t k = 0; k < sample_points_.size(); ++k) {
     const int e = sample_points_[k].element;
     if (e != prepared) {
+      // Elements come in order (the end points last): consecutive ones share a node's tangent.
+      const HermiteElement previous = h;
       h = hermite_element(model_.rest_positions().col(e), model_.element(e), node_tangents_.col(e),
-                          node_tangents_.col(e + 1), u_.segment<6>(3 * e));
+                          node_tangents_.col(e + 1), u_.segment<6>(3 * e),
+                          e == prepared + 1 && prepared >= 0 ? &previous : nullptr);
       prepared = e;
     }
     points_[k] = hermite_point(h, sample_points_[k].xi);
@@ -409,6 +413,11 @@ void Tracker::search(const ImageView& frame, int range_px) {
     base.band_px = 0;
   }
   const int margin = base.margin();
+  // The whole-pixel offset of a line's centre from its sample point (± the rounded half width).
+  const int half_width = static_cast<int>(std::lround(options_.half_width_px));
+  auto side_offset_px = [&](const SearchLine& line) {
+    return line.side > 0.0f ? half_width : line.side < 0.0f ? -half_width : 0;
+  };
   float* profile = scratch_.data();
   float* response = scratch_.data() + scratch_.size() / 2;
   // Expected intensity step along the search direction (edge mode): a dark object's +n boundary
@@ -430,10 +439,21 @@ void Tracker::search(const ImageView& frame, int range_px) {
     }
     return;
   }
+  // Pixels reach the cache a few sample points ahead of their sampling (see prefetch_profile).
+  const int reach = (sides_ == 2 ? half_width : 0) + base.range_px + margin;
+  constexpr int kPrefetchAhead = 4;
+  auto prefetch = [&](std::size_t point) {
+    if (point < points_.size()) {
+      prefetch_profile(frame, points_[point].position, points_[point].normal, -reach,
+                       2 * reach + 2);
+    }
+  };
+  for (int k = 0; k < kPrefetchAhead; ++k) prefetch(k);
   std::size_t l = 0;
   while (l < lines_.size()) {
     SearchLine& line = lines_[l];
     const CentrelinePoint& p = points_[line.point];
+    prefetch(line.point + kPrefetchAhead);
     if (line.end != 0) {
       // An end: the object gives way to background going outwards along the tangent.
       line.centre = expected_point(line, p, &line.normal);
@@ -463,14 +483,14 @@ void Tracker::search(const ImageView& frame, int range_px) {
     int lo = std::numeric_limits<int>::max(), hi = std::numeric_limits<int>::min();
     for (std::size_t j = l; j <= last; ++j) {
       lines_[j].centre = expected_point(lines_[j], p, &lines_[j].normal);
-      const int c = static_cast<int>(std::lround(lines_[j].side * options_.half_width_px));
+      const int c = side_offset_px(lines_[j]);
       lo = std::min(lo, c - base.range_px - margin);
       hi = std::max(hi, c + base.range_px + margin);
     }
     sample_profile(frame, p.position, p.normal, lo, hi - lo + 1, base.band_px, profile);
     for (std::size_t j = l; j <= last; ++j) {
       const double c = lines_[j].side * options_.half_width_px;
-      const int ci = static_cast<int>(std::lround(c));
+      const int ci = side_offset_px(lines_[j]);
       ProfileSearch search = base;
       search.expected_sign = edge_sign(lines_[j]);
       lines_[j].num_candidates = find_candidates(profile, ci - lo, static_cast<float>(c - ci),
@@ -486,10 +506,15 @@ double Tracker::residuals() {
   evaluate_points();
   for (std::size_t l = 0; l < lines_.size(); ++l) {
     const SearchLine& line = lines_[l];
+    const CentrelinePoint& p = points_[line.point];
+    if (l == 0 || lines_[l - 1].point != line.point) {
+      // d = (observation − model)·n₀, so ∂d/∂u = −n₀ᵀ ∂c/∂u (the normal's own variation is
+      // second order at the fit). The lines of a point share it; add_image_term reads the first's.
+      jacobian_rows_[l] = -(line.normal.transpose() * p.jacobian).transpose();
+    }
     residual_[l] = kNaN;
     strength_[l] = 0.0f;
     if (line.num_candidates == 0) continue;
-    const CentrelinePoint& p = points_[line.point];
     Eigen::Vector2d direction;
     const Eigen::Vector2d model_point = expected_point(line, p, &direction);
     const double model_offset = (model_point - line.centre).dot(line.normal);
@@ -509,16 +534,13 @@ double Tracker::residuals() {
     }
     residual_[l] = static_cast<float>(best);
     strength_[l] = best_strength;
-    // d = (observation − model)·n₀, so ∂d/∂u = −n₀ᵀ ∂c/∂u (the normal's own variation is
-    // second order at the fit).
-    jacobian_rows_[l] = -(line.normal.transpose() * p.jacobian).transpose();
     sorted_[valid++] = static_cast<float>(std::abs(best));
   }
   cutoff_ = 0.0;
   if (valid == 0) return 0.0;
-  auto mid = sorted_.begin() + valid / 2;
-  std::nth_element(sorted_.begin(), mid, sorted_.begin() + valid);
-  const double sigma = std::max(1.4826 * double(*mid), options_.min_sigma_px);
+  const double median =
+      detail::kth_smallest(sorted_.data(), static_cast<int>(valid), static_cast<int>(valid / 2));
+  const double sigma = std::max(1.4826 * median, options_.min_sigma_px);
   cutoff_ = options_.tukey_c * sigma;
   return cutoff_;
 }
@@ -868,9 +890,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   summary.status = converged ? FrameStatus::kOk : FrameStatus::kNotConverged;
   previous_lost_ = false;
   if (strong_samples > 0) {
-    std::nth_element(sorted_.begin(), sorted_.begin() + strong_samples / 2,
-                     sorted_.begin() + strong_samples);
-    const double median = sorted_[strong_samples / 2];
+    const double median = detail::kth_smallest(sorted_.data(), strong_samples, strong_samples / 2);
     typical_strength_ = frames_ == 0 ? median : 0.8 * typical_strength_ + 0.2 * median;
   }
   last_miss_px_ = max_node_distance(u_, u_predicted_);
@@ -1003,8 +1023,9 @@ void Tracker::fit_loads(FrameSummary& summary) {
     int count = 0;
     for (int i = 0; i < n; ++i)
       sorted_[count++] = static_cast<float>(fit_residual_.segment<3>(3 * i).norm());
-    std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
-    const double cut = kLoadFitTukey * std::max(1.4826 * double(sorted_[count / 2]), 0.05);
+    const double cut =
+        kLoadFitTukey *
+        std::max(1.4826 * double(detail::kth_smallest(sorted_.data(), count, count / 2)), 0.05);
     for (int i = 0; i < n; ++i) {
       const double r = fit_residual_.segment<3>(3 * i).norm() / cut;
       const double w = r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0;
