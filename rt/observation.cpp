@@ -35,8 +35,8 @@ void sample_profile(const ImageView& image, const Eigen::Vector2d& centre,
     constexpr double kOne = 65536.0;
     detail::ProfileWalk walk;
     walk.rows = rows;
-    walk.dx = static_cast<std::int32_t>(std::lround(normal.x() * kOne));
-    walk.dy = static_cast<std::int32_t>(std::lround(normal.y() * kOne));
+    walk.dx = static_cast<std::int32_t>(detail::round_half_away(normal.x() * kOne));
+    walk.dy = static_cast<std::int32_t>(detail::round_half_away(normal.y() * kOne));
     for (int r = 0; r < rows; ++r) {
       const Eigen::Vector2d start = centre + double(first) * normal + double(r - band) * tangent;
       // Positive coordinates: truncating v + 0.5 rounds to nearest. + 128: the 8-bit weights
@@ -76,8 +76,8 @@ void prefetch_profile(const ImageView& image, const Eigen::Vector2d& centre,
   constexpr double kOne = 65536.0;
   std::int32_t x = static_cast<std::int32_t>(a.x() * kOne);
   std::int32_t y = static_cast<std::int32_t>(a.y() * kOne);
-  const std::int32_t dx = static_cast<std::int32_t>(std::lround(normal.x() * kOne));
-  const std::int32_t dy = static_cast<std::int32_t>(std::lround(normal.y() * kOne));
+  const std::int32_t dx = static_cast<std::int32_t>(detail::round_half_away(normal.x() * kOne));
+  const std::int32_t dy = static_cast<std::int32_t>(detail::round_half_away(normal.y() * kOne));
   for (int k = 0; k < count; ++k, x += dx, y += dy) {
     __builtin_prefetch(image.data + std::ptrdiff_t(y >> 16) * image.stride + (x >> 16));
   }

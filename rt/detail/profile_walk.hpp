@@ -16,11 +16,16 @@ namespace sinew::rt::detail {
 /// AVX2 kernel reads 4 bytes per row of the support), and positions must stay below 2¹⁵ px.
 struct ProfileWalk {
   static constexpr int kMaxRows = 21;
-  std::int32_t x[kMaxRows] = {};
-  std::int32_t y[kMaxRows] = {};
+  std::int32_t x[kMaxRows];  // rows [0, rows) are set (no zeroing: a walk is built per line)
+  std::int32_t y[kMaxRows];
   int rows = 1;
   std::int32_t dx = 0, dy = 0;
 };
+
+/// std::lround without the library call (|v| < 2³¹): round half away from zero.
+inline double round_half_away(double v) {
+  return static_cast<double>(static_cast<long long>(v + (v >= 0.0 ? 0.5 : -0.5)));
+}
 
 /// Whether this CPU can run the AVX2 kernel (checked once).
 bool avx2_available();

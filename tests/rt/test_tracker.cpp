@@ -157,6 +157,39 @@ TEST(Tracker, DenseSolveMatchesBandedSolve) {
 namespace sinew::rt {
 namespace {
 
+// Without the force verification, a repetition whose first step is already below the frame's
+// tolerance ends the frame (no polishing step): fewer Newton iterations, the same shape to within
+// that tolerance.
+TEST(Tracker, WithoutVerificationTheFitSkipsThePolishAndKeepsTheShape) {
+  const Cantilever c;
+  TruthSequence truth(c);
+  TrackerOptions verified_options;
+  verified_options.observation = ObservationMode::kEdge;
+  verified_options.half_width_px = 3.0;
+  TrackerOptions fast_options = verified_options;
+  fast_options.verify_forces = false;
+  Tracker verified(c.description(1), verified_options), fast(c.description(1), fast_options);
+  ASSERT_TRUE(verified.valid() && fast.valid());
+  std::mt19937 gen(3);
+  int verified_iterations = 0, fast_iterations = 0;
+  for (int k = 0; k < 15; ++k) {
+    ASSERT_TRUE(truth.load(0.2 * k * c.EI() / (c.length * c.length)));
+    GreyImage img = truth.render();
+    sinew::testing::add_noise(img, 4.0, gen);
+    SCOPED_TRACE("frame " + std::to_string(k));
+    const FrameSummary a = verified.track(img.view()), b = fast.track(img.view());
+    EXPECT_EQ(a.status, FrameStatus::kOk);
+    EXPECT_EQ(b.status, FrameStatus::kOk);
+    verified_iterations += a.iterations;
+    fast_iterations += b.iterations;
+    double same = 0.0;
+    for (int i = 0; i <= c.elements; ++i)
+      same = std::max(same, (verified.node_position(i) - fast.node_position(i)).norm());
+    EXPECT_LT(same, fast_options.convergence_px) << "px";
+  }
+  EXPECT_LT(fast_iterations, verified_iterations);
+}
+
 // Boundary pixels of a rendered frame: bright pixels with a dark 4-neighbour (a 1 px edge map, as
 // Canny would give; both boundaries sit ~0.5 px outside the band, so the centreline is unbiased).
 GreyImage boundary_map(const GreyImage& img) {
