@@ -69,6 +69,10 @@ std::optional<std::string> ConjugateGradientOptions::validate() const {
     out << "max_seconds = " << max_seconds << " must be >= 0";
     return out.str();
   }
+  if (progress_every < 1) {
+    out << "progress_every = " << progress_every << " must be >= 1";
+    return out.str();
+  }
   return std::nullopt;
 }
 
@@ -305,6 +309,11 @@ ConjugateGradientSummary conjugate_gradient_solve(const Eigen::SparseMatrix<doub
   while (summary.iterations < options.max_iterations && residual_sq > target_sq) {
     if (options.max_seconds > 0.0 && summary.iterations % 16 == 0 &&
         seconds_since(start) > options.max_seconds) {
+      break;
+    }
+    if (options.progress && summary.iterations % options.progress_every == 0 &&
+        summary.iterations > 0 &&
+        !options.progress(summary.iterations, y, std::sqrt(residual_sq) / h_norm)) {
       break;
     }
     apply_gauss_newton_hessian(L, Zt, direction, H_direction);

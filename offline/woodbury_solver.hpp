@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 #include <Eigen/LU>
 #include <Eigen/SparseCore>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -151,6 +152,10 @@ struct ConjugateGradientOptions {
   double relative_tolerance = 1e-10;  ///< stop when ‖h − Hy‖ ≤ tol·‖h‖; in (0, 1)
   /// Stop after this much wall-clock time (seconds; 0 = no limit, ≥ 0): the benchmark's cap.
   double max_seconds = 0.0;
+  /// Called every progress_every iterations with the iterate y and the recursive relative
+  /// residual; returning false stops the solve (a benchmark stops once y matches a reference).
+  std::function<bool(int iteration, const Eigen::VectorXd& y, double relative_residual)> progress;
+  int progress_every = 500;  ///< ≥ 1
   std::optional<std::string> validate() const;
 };
 

@@ -281,7 +281,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   for (Eigen::VectorXd* v :
        {&u_, &u_prev1_, &u_prev2_, &u_predicted_, &u_start_, &p_ref_, &gradient_, &du_, &forces_,
         &fitted_loads_, &u_verify_, &verify_loads_prev_, &verify_previous_state_,
-        &verify_previous_forces_, &verify_backup_, &u_searched_}) {
+        &verify_previous_forces_, &verify_backup_, &u_searched_, &p_next_}) {
     v->setZero(dofs);
   }
   for (Eigen::VectorXd* v : {&u_fit_, &fit_loads_prev_, &fit_rhs_, &fit_z_}) {
@@ -698,10 +698,14 @@ bool Tracker::newton_step() {
 }
 
 void Tracker::internal_force_at_start() {
+  bending_reference_force(p_ref_);
+}
+
+void Tracker::bending_reference_force(Eigen::VectorXd& p_ref) const {
   // Only the bending part is taken relative to the repetition's start: axial and shear strains stay
   // measured from the reference, so the image forces can bend the beam all the way onto the data
   // but cannot stretch it along its axis, where edges give no information.
-  p_ref_.setZero();
+  p_ref.setZero();
   if (options_.model == TrackerModel::kBeam) {
     // The bending part of p is L₀·M·∂κ/∂u = M·(−e_θ₁ + e_θ₂) per element.
     for (int e = 0; e < model_.num_elements(); ++e) {
@@ -710,8 +714,8 @@ void Tracker::internal_force_at_start() {
       const double M0 =
           model_.description().prestress.empty() ? 0.0 : model_.description().prestress[e].M0;
       const double M = (1.0 - options_.bending_memory) * (M0 + section.EI * h.kappa);
-      p_ref_[3 * e + 2] -= M;
-      p_ref_[3 * e + 5] += M;
+      p_ref[3 * e + 2] -= M;
+      p_ref[3 * e + 5] += M;
     }
   } else {
     // Snake: the bending term's gradient at the start (the stretching term stays absolute).
@@ -721,7 +725,7 @@ void Tracker::internal_force_at_start() {
       const Eigen::Vector2d b =
           u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) + u_.segment<2>(3 * i - 3);
       for (int a = 0; a < 3; ++a) {
-        p_ref_.segment<2>(3 * (i - 1 + a)) +=
+        p_ref.segment<2>(3 * (i - 1 + a)) +=
             (1.0 - options_.bending_memory) * 2.0 * options_.snake_bend_weight * coeff[a] * b;
       }
     }
@@ -776,6 +780,10 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
                                     options_.observation != ObservationMode::kEdge ||
                                     !(last_miss_px_ <= options_.predictable_px));
   bool coarse_candidates = false;
+  // The last polishing steps are skipped (see below) unless the forces are verified: per-node
+  // forces are derivatives of the shape, and a forward solve of a slender beam needs the polished
+  // fit (measured: thin cantilever, 2 of 40 frames fail to verify without it).
+  const bool polish_optional = !options_.verify_forces;
   for (int rep = 0; rep < options_.max_repetitions && !failed; ++rep) {
     const bool wide = rep == 0 && wide_first;
     // After a lost frame the object may have moved for several frames: search twice as wide.
@@ -797,13 +805,14 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
     u_start_ = u_;
     internal_force_at_start();
     ++summary.repetitions;
+    double step = 0.0;
     for (int it = 0; it < options_.max_newton_iterations; ++it) {
       if (!newton_step()) {
         failed = true;
         break;
       }
       ++summary.iterations;
-      double step = 0.0;
+      step = 0.0;
       for (int i = 0; i < model_.num_nodes(); ++i)
         step = std::max(step, du_.segment<2>(3 * i).norm());
       // The repetition has converged once a step is a fraction of the frame's tolerance (steps
@@ -811,16 +820,8 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
       if (step < 0.25 * options_.convergence_px) break;
       // After the first repetition, a first step below the frame's tolerance ends the frame: the
       // repetition cannot move the model by more than the tolerance (the steps that would follow
-      // are a tenth of this one), so the convergence test below passes either way. Not when the
-      // forces are verified: per-node forces are derivatives of the shape, and a forward solve of
-      // a slender beam needs the polished fit (measured: thin cantilever, 2 of 40 frames fail to
-      // verify without the polish).
-      // Nor with the seed's edge-map observations: whole-pixel edges make the steps shrink
-      // irregularly, and the polish matters there (measured: 0.33 → 0.39 px node error).
-      if (rep > 0 && it == 0 && step < options_.convergence_px && !options_.verify_forces &&
-          options_.observation != ObservationMode::kEdgeMap) {
-        break;
-      }
+      // are a tenth of this one), so the convergence test below passes either way.
+      if (rep > 0 && it == 0 && step < options_.convergence_px && polish_optional) break;
     }
     if (rep == 0 && frames_ > 0 && !wide && !failed && object_fraction_at_last_step() < 0.5) {
       // The narrow search around the prediction did not find the object: the motion outran the
@@ -838,6 +839,32 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
                     (move < 4.0 * options_.convergence_px && move > 0.9 * last_move))) {
       converged = true;
       break;
+    }
+    // The next repetition's move, predicted instead of taken: when this one ended with a step
+    // below the tolerance and the next would re-use the candidates, its gradient differs from
+    // this one's last only by the new bending reference, Δp = p_ref(u) − p_ref(u_start), so its
+    // first step is K⁻¹Δp on the last factorisation (one block-tridiagonal solve instead of a
+    // Newton iteration), and the steps after it are a quarter of the last one at most. Applied,
+    // and the frame ends, when that is below the tolerance.
+    if (!failed && polish_optional && options_.model == TrackerModel::kBeam &&
+        !options_.dense_solve && step < options_.convergence_px && !coarse_candidates &&
+        max_node_distance(u_, u_searched_) <= research_distance_) {
+      bending_reference_force(p_next_);
+      du_ = p_next_ - p_ref_;
+      const auto& fixed = model_.fixed_mask();
+      for (Eigen::Index k = 0; k < du_.size(); ++k) {
+        if (fixed[k]) du_[k] = 0.0;
+      }
+      ldlt_.solve_in_place(du_);
+      double predicted = 0.0;
+      for (int i = 0; i < model_.num_nodes(); ++i)
+        predicted = std::max(predicted, du_.segment<2>(3 * i).norm());
+      if (du_.allFinite() && predicted + 0.25 * step < options_.convergence_px) {
+        u_ += du_;
+        converged = true;
+        ++summary.predicted;
+        break;
+      }
     }
     last_move = move;
   }

@@ -141,6 +141,7 @@ struct FrameSummary {
   int repetitions = 0;   ///< minimisations run
   int iterations = 0;    ///< Newton iterations over all repetitions
   int searches = 0;      ///< repetitions that searched the image (others re-used candidates)
+  int predicted = 0;     ///< 1 when the last repetition's move was predicted, not iterated
   int search_lines = 0;  ///< search lines inside the image
   double rms_px = 0.0;   ///< RMS image residual of the inliers at the end, pixels
   double inlier_fraction = 0.0;  ///< search lines with an inlier observation / all search lines
@@ -227,6 +228,8 @@ class Tracker {
   void add_snake_term();
   // p_ref_ = the model's elastic force at u_ (start of a repetition).
   void internal_force_at_start();
+  // The bending reference force at u_ (what internal_force_at_start puts in p_ref_) into p_ref.
+  void bending_reference_force(Eigen::VectorXd& p_ref) const;
   bool newton_step();
   double max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
   double rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
@@ -262,7 +265,8 @@ class Tracker {
   std::vector<common::Vector6d> jacobian_rows_;  // ∂d/∂u_e per line
   Eigen::Matrix2Xd node_tangents_;               // unit reference tangent per node
   Eigen::VectorXd u_searched_;                   // state at the last search
-  Eigen::VectorXd u_, u_prev1_, u_prev2_, u_predicted_, u_start_, p_ref_, gradient_, du_, forces_;
+  Eigen::VectorXd u_, u_prev1_, u_prev2_, u_predicted_, u_start_, p_ref_, p_next_, gradient_, du_,
+      forces_;
   Eigen::VectorXd fitted_loads_;
   common::BlockTridiagonal tangent_;
   common::BlockTridiagonalLdlt ldlt_;
