@@ -84,12 +84,15 @@ struct TrackerOptions {
   double convergence_px = 0.02;
   /// A repetition searches the image again only if the model moved more than this (pixels, max
   /// over nodes, and at most a sixth of the mean element length) since the last search; otherwise
-  /// it re-uses the candidates. 0 always searches. 2 px (was 0.75) saves the second search on most
-  /// frames of beams with elements ≥ 12 px at no measured loss (tests/tools, bench); with shorter
+  /// it re-uses the candidates. 0 always searches. 3 px (was 0.75, then 2) saves the second search
+  /// on most frames of beams with elements ≥ 18 px at no measured loss (tests/tools unchanged;
+  /// bench, 16 and 32 elements: 1.25 → 1.03 searches per frame, where a tip moving 30 px per frame
+  /// misses the constant-velocity prediction by 2.1–2.3 px; node error 0.069 → 0.068 and
+  /// 0.097 → 0.087 px); with shorter
   /// elements re-used candidates bias the fit (128 elements of 4.7 px: 0.31 → 0.58 px mean node
   /// error without the element-length bound). A wide search's one-row candidates are always
   /// replaced by a narrow search.
-  double research_px = 2.0;
+  double research_px = 3.0;
   /// Tukey's constant in units of the robust residual scale, > 0. 4.685 is the textbook 95 %
   /// efficiency; 3.5 rejects clutter crossings earlier (measured: 1–2 % better tip loads on the
   /// synthetic sequences, no loss elsewhere).
