@@ -771,6 +771,12 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   }
 
   u_predicted_ = u_;
+  // Whether this frame's prediction carries a velocity (the frame after the first, a lost frame
+  // or reset_motion() predicts without one, and its miss is the whole motion, not a prediction
+  // error: the frame after it trusts its first velocity, with the narrow search's retry as the
+  // safety net).
+  const bool with_velocity =
+      frames_ >= 2 && options_.predict && !previous_lost_ && std::isfinite(last_miss_px_);
 
   bool converged = false, failed = false;
   double last_move = std::numeric_limits<double>::infinity();
@@ -932,7 +938,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
     const double median = detail::kth_smallest(sorted_.data(), strong_samples, strong_samples / 2);
     typical_strength_ = frames_ == 0 ? median : 0.8 * typical_strength_ + 0.2 * median;
   }
-  last_miss_px_ = max_node_distance(u_, u_predicted_);
+  last_miss_px_ = with_velocity ? max_node_distance(u_, u_predicted_) : 0.0;
   u_prev2_ = frames_ >= 1 ? u_prev1_ : u_;
   u_prev1_ = u_;
   ++frames_;
