@@ -75,7 +75,7 @@ const GreyImage& frame(const Frames& f, int k) {
 
 struct Counts {
   long mallocs = 0, news = 0;
-  int ok = 0, lost = 0, not_converged = 0, verified = 0, fitted = 0;
+  int ok = 0, lost = 0, not_converged = 0, verified = 0, fitted = 0, predicted = 0;
 };
 
 Counts run(Tracker& tracker, const Frames& frames, int count) {
@@ -90,6 +90,7 @@ Counts run(Tracker& tracker, const Frames& frames, int count) {
     c.not_converged += s.status == FrameStatus::kNotConverged;
     c.verified += s.verified;
     c.fitted += s.loads_fitted;
+    c.predicted += s.predicted;
   }
   counter.stop();
   Eigen::internal::set_is_malloc_allowed(true);
@@ -118,6 +119,25 @@ TEST(NoAllocation, BeamTrackerWithVerificationAndLoadFit) {
   EXPECT_GT(c.lost, 10);
   EXPECT_GT(c.verified, 200);
   EXPECT_GT(c.fitted, 100);
+}
+
+// Without verification the last repetition is predicted on most frames (a block-tridiagonal solve
+// on the kept factorisation): that path allocates nothing either.
+TEST(NoAllocation, BeamTrackerWithoutVerification) {
+  if (!sinew::testing::allocation_counting_available())
+    GTEST_SKIP() << sinew::testing::kAllocationCountingUnavailable;
+  const Frames frames = render(12);
+  TrackerOptions options;
+  options.observation = ObservationMode::kEdge;
+  options.half_width_px = 3.0;
+  options.verify_forces = false;
+  Tracker tracker(cantilever(1), options);
+  ASSERT_TRUE(tracker.valid()) << tracker.error();
+  const Counts c = run(tracker, frames, 300);
+  EXPECT_EQ(c.mallocs, 0);
+  EXPECT_EQ(c.news, 0);
+  EXPECT_GT(c.ok, 150);
+  EXPECT_GT(c.predicted, 50) << "the predicted repetition must have run";
 }
 
 TEST(NoAllocation, NonConvergingFramesAndSnake) {
