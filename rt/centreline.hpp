@@ -43,9 +43,10 @@ HermiteElement hermite_element(const Eigen::Vector2d& X1,
                                const common::Vector6d& u_e,
                                const HermiteElement* previous = nullptr);
 
-/// The centreline point at ξ of an element prepared by hermite_element. No allocation. Inline:
-/// the tracker evaluates it at every sample point once per Newton step.
-inline CentrelinePoint hermite_point(const HermiteElement& h, double xi) {
+/// The centreline point at ξ of an element prepared by hermite_element; without `jacobian` the
+/// point's jacobian is left unset. No allocation. Inline: the tracker evaluates it at every
+/// sample point once per Newton step.
+inline CentrelinePoint hermite_point(const HermiteElement& h, double xi, bool jacobian = true) {
   const double L0 = h.L0;
   const Eigen::Vector2d dt1(-h.t1.y(), h.t1.x()), dt2(-h.t2.y(), h.t2.x());  // ∂t/∂θ
 
@@ -61,6 +62,7 @@ inline CentrelinePoint hermite_point(const HermiteElement& h, double xi) {
   const double norm = tangent.norm();
   tangent = norm > 0 ? Eigen::Vector2d(tangent / norm) : h.D;
   p.normal = Eigen::Vector2d(-tangent.y(), tangent.x());
+  if (!jacobian) return p;
   p.jacobian.setZero();
   p.jacobian(0, 0) = p.jacobian(1, 1) = h00;
   p.jacobian(0, 3) = p.jacobian(1, 4) = h01;

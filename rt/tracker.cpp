@@ -342,7 +342,7 @@ CentrelinePoint Tracker::centreline(int element, double xi) const {
   return p;
 }
 
-void Tracker::evaluate_points() {
+void Tracker::evaluate_points(bool jacobians) {
   if (options_.model != TrackerModel::kBeam) {
     for (std::size_t k = 0; k < sample_points_.size(); ++k) {
       points_[k] = centreline(sample_points_[k].element, sample_points_[k].xi);
@@ -361,7 +361,7 @@ void Tracker::evaluate_points() {
                           e == prepared + 1 && prepared >= 0 ? &previous : nullptr);
       prepared = e;
     }
-    points_[k] = hermite_point(h, sample_points_[k].xi);
+    points_[k] = hermite_point(h, sample_points_[k].xi, jacobians);
   }
 }
 
@@ -403,7 +403,7 @@ Eigen::Vector2d Tracker::expected_point(const SearchLine& line, const Centreline
 
 void Tracker::search(const ImageView& frame, int range_px) {
   const int K = options_.max_candidates;
-  evaluate_points();
+  evaluate_points(/*jacobians=*/false);  // positions and normals; residuals() needs the rest
   ProfileSearch base = profile_search_;
   base.range_px = std::min(range_px, profile_search_.range_px);  // never past the scratch
   // In edge mode the wide first search only has to bring the model near the object's strong
@@ -562,6 +562,7 @@ void Tracker::add_image_term(double cutoff) {
   // their Tukey-weighted terms add up to one rank-1 update (Σw) j jᵀ; an element's updates are
   // summed locally and scattered into the system once.
   const bool snake = options_.model == TrackerModel::kSnake;
+  const double inverse_cutoff = 1.0 / cutoff;  // used only where |d| < cutoff
   common::Matrix6d H = common::Matrix6d::Zero();
   common::Vector6d g = common::Vector6d::Zero();
   int element = -1;
@@ -583,7 +584,7 @@ void Tracker::add_image_term(double cutoff) {
     for (; l < lines_.size() && lines_[l].point == lines_[first].point; ++l) {
       const float d = residual_[l];
       if (!(std::abs(d) < cutoff)) continue;  // NaN or an outlier: weight 0
-      const double r = d / cutoff;
+      const double r = d * inverse_cutoff;
       const double w = observation_weight_ * (1.0 - r * r) * (1.0 - r * r);  // Tukey
       sum_w += w;
       sum_wd += w * d;
@@ -881,8 +882,9 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   int inliers = 0, inside = 0;
   double sum_sq = 0.0;
   for (std::size_t l = 0; l < lines_.size(); ++l) {
-    float dummy;
-    if (frame.sample(lines_[l].centre.x(), lines_[l].centre.y(), &dummy)) ++inside;
+    const Eigen::Vector2d& c = lines_[l].centre;  // inside where ImageView::sample would read
+    if (c.x() >= 0.0 && c.y() >= 0.0 && c.x() <= frame.width - 1.0 && c.y() <= frame.height - 1.0)
+      ++inside;
     if (std::abs(residual_[l]) < cutoff) {
       ++inliers;
       sum_sq += double(residual_[l]) * residual_[l];

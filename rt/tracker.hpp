@@ -212,7 +212,7 @@ class Tracker {
 
   // points_ = the model curve at every sample point at u_: each element's rotations are evaluated
   // once (not once per search line), and the two boundaries of a sample share their point.
-  void evaluate_points();
+  void evaluate_points(bool jacobians = true);
   // Where the line expects the image feature at u_, and the direction it searches along.
   Eigen::Vector2d expected_point(const SearchLine& line, const CentrelinePoint& p,
                                  Eigen::Vector2d* direction) const;
