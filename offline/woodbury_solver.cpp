@@ -52,6 +52,10 @@ std::optional<std::string> WoodburySolverOptions::validate() const {
     out << "threads = " << threads << " must be >= 0";
     return out.str();
   }
+  if (refinement_steps < 0) {
+    out << "refinement_steps = " << refinement_steps << " must be >= 0";
+    return out.str();
+  }
   return std::nullopt;
 }
 
@@ -100,7 +104,8 @@ std::optional<WoodburySolver> WoodburySolver::create(const TetAdjacency& adjacen
   solver.work_.resize(static_cast<std::size_t>(solver.threads_));
   solver.grounded_ = SparseCholesky(SparseCholeskyOptions{options.ordering});
   // L^sc without tet 0: SPD on a connected graph (a grounded graph Laplacian).
-  const Eigen::SparseMatrix<double> scalar = scalar_tet_laplacian(adjacency, num_tets);
+  solver.scalar_laplacian_ = scalar_tet_laplacian(adjacency, num_tets);
+  const Eigen::SparseMatrix<double>& scalar = solver.scalar_laplacian_;
   const Eigen::SparseMatrix<double> grounded = scalar.bottomRightCorner(num_tets - 1, num_tets - 1);
   const Clock::time_point start = Clock::now();
   const SparseCholeskyStatus status = solver.grounded_.compute(grounded);
@@ -254,6 +259,43 @@ WoodburyStatus WoodburySolver::solve(const Eigen::Ref<const Eigen::VectorXd>& h,
   if (h.size() != size() || y.size() != size() || !h.allFinite()) {
     return WoodburyStatus::kInvalidInput;
   }
+  WoodburyStatus status = solve_once(h, y);
+  if (status != WoodburyStatus::kOk || options_.refinement_steps == 0) return status;
+  // Iterative refinement: the residual of the solve, solved again with the same factorisations.
+  Eigen::VectorXd residual(size()), Hy(size()), correction(size());
+  for (int step = 0; step < options_.refinement_steps; ++step) {
+    apply_hessian(y, Hy);
+    residual = h - Hy;
+    status = solve_once(residual, correction);
+    if (status != WoodburyStatus::kOk) return status;
+    y += correction;
+  }
+  return status;
+}
+
+void WoodburySolver::apply_hessian(const Eigen::VectorXd& v, Eigen::VectorXd& out) const {
+  const Eigen::Index m = num_tets_;
+  const std::array<double, 6>& w = plastic_strain_laplacian_weights();
+  out.resize(size());
+  // L² = (L^sc)² ⊗ diag(w²), one component at a time.
+  Eigen::VectorXd component(m), once(m), twice(m);
+  for (int c = 0; c < 6; ++c) {
+    for (Eigen::Index t = 0; t < m; ++t) component[t] = v[6 * t + c];
+    once.noalias() = scalar_laplacian_ * component;
+    twice.noalias() = scalar_laplacian_ * once;
+    for (Eigen::Index t = 0; t < m; ++t) out[6 * t + c] = w[c] * w[c] * twice[t];
+  }
+  const Eigen::VectorXd Zv = Zt_.transpose() * v;
+  out.noalias() += Zt_ * Zv;
+  // δΨΨᵀv: Ψ_c is 1/√m on component c of every tet.
+  const double delta = nullspace_damping();
+  Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+  for (Eigen::Index t = 0; t < m; ++t) sum += v.segment<6>(6 * t);
+  for (Eigen::Index t = 0; t < m; ++t) out.segment<6>(6 * t) += (delta / double(m)) * sum;
+}
+
+WoodburyStatus WoodburySolver::solve_once(const Eigen::Ref<const Eigen::VectorXd>& h,
+                                          Eigen::Ref<Eigen::VectorXd> y) {
   // y = u − B⁻¹Ẑᵀ C⁻¹ Ẑu,  u = B⁻¹h (eq. 14).
   Eigen::VectorXd u(size());
   const WoodburyStatus status = apply_base_inverse(h, u);
