@@ -876,9 +876,13 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
     last_move = move;
   }
 
+  // Final residuals: RMS of the inliers and the fraction of search lines that found one. A
+  // converged frame keeps those of its last Newton step (nearest-candidate association, within
+  // convergence_px of the final state: a fraction of the residual bounds below); otherwise they
+  // are evaluated again at the final state.
+  const bool reuse = converged && !strongest_candidate_;
   strongest_candidate_ = false;
-  // Final residuals: RMS of the inliers and the fraction of search lines that found one.
-  const double cutoff = failed ? 0.0 : residuals();
+  const double cutoff = failed ? 0.0 : reuse ? cutoff_ : residuals();
   int inliers = 0, inside = 0;
   double sum_sq = 0.0;
   for (std::size_t l = 0; l < lines_.size(); ++l) {
