@@ -30,6 +30,7 @@
 #include "rt/tracker.hpp"
 // Hooks malloc/new to count allocations in the tracked frames (this is the executable's only TU).
 #include "tests/support/allocation_counter.hpp"
+#include "tests/support/beam_render.hpp"
 
 namespace {
 
@@ -53,7 +54,7 @@ struct Sequence {
 };
 
 // Frames of a cantilever whose tip load swings λ = 0 → 3 → 0 (a smooth, continuous motion), drawn
-// from a fine static solution with OpenCV (anti-aliased band) plus Gaussian noise.
+// from a fine static solution (an anti-aliased band around its centreline) plus Gaussian noise.
 const Sequence& sequence() {
   static const Sequence all = [] {
     Sequence out;
@@ -70,14 +71,17 @@ const Sequence& sequence() {
       f[fine.num_dofs() - 2] = lambda * EI / (kLength * kLength);
       solver.solve(f, u, &f_prev);
       f_prev = f;
-      std::vector<cv::Point> pts;
       Eigen::Matrix2Xd nodes(2, fine.num_nodes());
       for (int i = 0; i < fine.num_nodes(); ++i) {
         nodes.col(i) = fine.rest_positions().col(i) + u.segment<2>(3 * i);
-        pts.emplace_back(cvRound(nodes(0, i) * 16), cvRound(nodes(1, i) * 16));
       }
-      cv::Mat img(kHeight, kWidth, CV_8UC1, cv::Scalar(200));
-      cv::polylines(img, pts, false, cv::Scalar(60), int(2 * kHalfWidth), cv::LINE_AA, 4);
+      // The band of half width kHalfWidth around the solution's Hermite centreline, exactly (an
+      // OpenCV thick polyline of thickness 12 covers 13.4 px, and its round cap reaches 0.7 px past
+      // the true end).
+      sinew::testing::GreyImage band(kWidth, kHeight, 200);
+      sinew::testing::draw_band(band, sinew::testing::centreline_points(fine, u, 4), kHalfWidth,
+                                60);
+      cv::Mat img = cv::Mat(kHeight, kWidth, CV_8UC1, band.pixels.data()).clone();
       cv::Mat noise(img.size(), CV_16SC1);
       rng.fill(noise, cv::RNG::NORMAL, 0, 8);
       cv::Mat noisy;

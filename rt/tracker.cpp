@@ -103,6 +103,9 @@ std::optional<std::string> TrackerOptions::validate() const {
   if (!(image_stiffness > 0.0)) {
     return field_error("image_stiffness", image_stiffness, "must be > 0");
   }
+  if (!(min_image_length_px >= 0.0)) {
+    return field_error("min_image_length_px", min_image_length_px, "must be >= 0");
+  }
   if (!(bending_memory >= 0.0 && bending_memory < 1.0)) {
     return field_error("bending_memory", bending_memory, "must be in [0, 1)");
   }
@@ -227,6 +230,8 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   lines_.resize(static_cast<std::size_t>(elements) * per_element + start_free + end_free);
   std::size_t l = 0;
   double stiffness = 0.0, mean_length = 0.0;
+  const double min_image_length = options_.min_image_length_px > 0.0 ? options_.min_image_length_px
+                                                                     : 4.0 * options_.half_width_px;
   for (int e = 0; e < elements; ++e) {
     for (int s = 0; s < options_.samples_per_element; ++s) {
       const float xi = static_cast<float>((s + 0.5) / options_.samples_per_element);
@@ -240,7 +245,9 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
       }
     }
     const double L0 = model_.element(e).length;
-    stiffness += 12.0 * model_.description().sections[e].EI / (L0 * L0 * L0);
+    // 12·EI/ℓ³·(L₀/ℓ) per element: 12·EI/L₀³ when ℓ = L₀, otherwise 12·EI/ℓ⁴ per unit length.
+    const double ell = std::max(L0, min_image_length);
+    stiffness += 12.0 * model_.description().sections[e].EI / (ell * ell * ell) * (L0 / ell);
     mean_length += L0;
   }
   if (start_free) {
@@ -265,7 +272,6 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
                             : options_.image_stiffness * stiffness / per_element;
   damping_translation_ = 1e-9 * observation_weight_ * per_element;
   damping_rotation_ = damping_translation_ * mean_length * mean_length;
-  research_distance_ = std::min(options_.research_px, mean_length / 6.0);
 
   candidates_.resize(lines_.size() * options_.max_candidates);
   residual_.assign(lines_.size(), kNaN);
@@ -799,7 +805,8 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
     // Search lines keep their position between repetitions, so their candidates stay valid while
     // the model moves little: search again only after a move larger than research_px.
     // The wide search's candidates come from one pixel row: always search again after it.
-    if (rep == 0 || coarse_candidates || max_node_distance(u_, u_searched_) > research_distance_) {
+    if (rep == 0 || coarse_candidates ||
+        max_node_distance(u_, u_searched_) > options_.research_px) {
       coarse_candidates = wide && options_.observation == ObservationMode::kEdge;
       const auto s0 = std::chrono::steady_clock::now();
       search(frame, wide ? wide_range : options_.search_range_px);
@@ -855,7 +862,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
     // and the frame ends, when that is below the tolerance.
     if (!failed && polish_optional && options_.model == TrackerModel::kBeam &&
         !options_.dense_solve && step < options_.convergence_px && !coarse_candidates &&
-        max_node_distance(u_, u_searched_) <= research_distance_) {
+        max_node_distance(u_, u_searched_) <= options_.research_px) {
       bending_reference_force(p_next_);
       du_ = p_next_ - p_ref_;
       const auto& fixed = model_.fixed_mask();

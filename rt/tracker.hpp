@@ -68,9 +68,18 @@ struct TrackerOptions {
   int line_surround_px = 0;
   /// Profile averaged over ±band_px pixels along the tangent (noise ÷ √(2·band + 1)), ≥ 0.
   int band_px = 1;
-  /// Image term weight relative to the elements' bending stiffness 12·EI/L₀³, > 0. Higher fits in
-  /// fewer repetitions; lower regularises more per repetition.
+  /// Image term weight relative to the elements' bending stiffness 12·EI/ℓ³ (ℓ below), > 0. Higher
+  /// fits in fewer repetitions; lower regularises more per repetition.
   double image_stiffness = 1.0;
+  /// Shortest length ℓ the image term is scaled to, pixels, ≥ 0; 0 picks 4·half_width_px (twice the
+  /// object's width). Elements at least this long weigh each search line by
+  /// image_stiffness·12·EI/L₀³ per element; shorter ones keep the image term's weight per unit
+  /// length at that of ℓ (12·EI/ℓ⁴), where L₀⁻³ would make it grow as the fourth power of the
+  /// number of elements while the beam's axial stiffness grows only linearly: the image then
+  /// stretches the beam along itself, where edges carry no information, and Newton steps converge
+  /// only linearly (bench, 128 elements of 4.7 px, width 12 px: 5.4 → 3.0 iterations per frame,
+  /// node error 0.20 → 0.03 px; 64 elements 0.086 → 0.029 px; 16 elements unchanged).
+  double min_image_length_px = 0.0;
   /// Fraction β of the bending force measured from the reference rather than from the start of
   /// each repetition, [0, 1). 0 is the seed's scheme (the shape follows the data with no memory of
   /// the reference); a little memory removes kinks that clutter or an occluder left behind, at a
@@ -83,15 +92,15 @@ struct TrackerOptions {
   /// A frame has converged when a repetition moves the nodes by less than this (RMS), pixels, > 0.
   double convergence_px = 0.02;
   /// A repetition searches the image again only if the model moved more than this (pixels, max
-  /// over nodes, and at most a sixth of the mean element length) since the last search; otherwise
-  /// it re-uses the candidates. 0 always searches. 3 px (was 0.75, then 2) saves the second search
-  /// on most frames of beams with elements ≥ 18 px at no measured loss (tests/tools unchanged;
-  /// bench, 16 and 32 elements: 1.25 → 1.03 searches per frame, where a tip moving 30 px per frame
-  /// misses the constant-velocity prediction by 2.1–2.3 px; node error 0.069 → 0.068 and
-  /// 0.097 → 0.087 px); with shorter
-  /// elements re-used candidates bias the fit (128 elements of 4.7 px: 0.31 → 0.58 px mean node
-  /// error without the element-length bound). A wide search's one-row candidates are always
-  /// replaced by a narrow search.
+  /// over nodes) since the last search; otherwise it re-uses the candidates. 0 always searches.
+  /// 3 px (was 0.75, then 2) saves the second search on most frames at no measured loss
+  /// (tests/tools unchanged; bench, 16 and 32 elements: 1.25 → 1.03 searches per frame, where a
+  /// tip moving 30 px per frame misses the constant-velocity prediction by 2.1–2.3 px; node error
+  /// 0.069 → 0.068 and 0.097 → 0.087 px). It was also bounded by a sixth of the element length
+  /// while short elements let the image term stretch the beam (see min_image_length_px); with
+  /// that fixed, re-used candidates cost short elements nothing either (bench, 64 and 128
+  /// elements: 1.4 and 1.8 → 1.02 searches per frame, node error 0.029 and 0.027 px). A wide
+  /// search's one-row candidates are always replaced by a narrow search.
   double research_px = 3.0;
   /// Tukey's constant in units of the robust residual scale, > 0. 4.685 is the textbook 95 %
   /// efficiency; 3.5 rejects clutter crossings earlier (measured: 1–2 % better tip loads on the
@@ -247,7 +256,6 @@ class Tracker {
   int sides_ = 1;
   double observation_weight_ = 0.0;
   double damping_translation_ = 0.0, damping_rotation_ = 0.0;
-  double research_distance_ = 0.0;  // research_px, at most a sixth of the mean element length
   int frames_ = 0;
   bool strongest_candidate_ = false;  // associate with the strongest candidate (first repetition)
   EdgePolarity polarity_ = EdgePolarity::kAny;  // resolved polarity (kAuto decided on frame 0)

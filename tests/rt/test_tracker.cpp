@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <cstdio>
 
 #include "common/beam/static_solver.hpp"
 #include "rt/tracker.hpp"
@@ -242,6 +243,69 @@ TEST(Tracker, EdgeMapModeFollowsTheCurrentFrame) {
     EXPECT_LT(error, 0.5) << "largest node error, pixels";
     previous_tip = tip;
   }
+}
+
+}  // namespace
+}  // namespace sinew::rt
+
+namespace sinew::rt {
+namespace {
+
+// Elements shorter than the object is wide (40 elements of 5 px on a 6 px band): the image term,
+// scaled to the elements' bending stiffness 12·EI/L₀³, would outweigh the beam's axial stiffness
+// and stretch the beam along itself, where edges say nothing, with Newton converging only
+// linearly. min_image_length_px keeps its weight per unit length at that of 4·half_width.
+struct ShortElementRun {
+  double mean_rms = 0.0, max_rms = 0.0, iterations = 0.0, searches = 0.0;
+};
+
+ShortElementRun track_short_elements(double min_image_length_px) {
+  Cantilever c;
+  c.elements = 40;
+  TruthSequence truth(c);
+  TrackerOptions options;
+  options.observation = ObservationMode::kEdge;
+  options.half_width_px = 3.0;
+  options.polarity = EdgePolarity::kDarkObject;
+  options.verify_forces = false;
+  options.min_image_length_px = min_image_length_px;
+  Tracker tracker(c.description(1), options);
+  EXPECT_TRUE(tracker.valid()) << tracker.error();
+  std::mt19937 gen(11);
+  const int frames = 24;
+  ShortElementRun run;
+  for (int k = 0; k < frames; ++k) {
+    // The tip sweeps down and back (about 8 px per frame at the fastest).
+    const double lambda = 3.0 * std::sin(3.14159265358979 * k / (frames - 1));
+    EXPECT_TRUE(truth.load(lambda * c.EI() / (c.length * c.length)));
+    GreyImage img = truth.render();
+    sinew::testing::add_noise(img, 4.0, gen);
+    const FrameSummary s = tracker.track(img.view());
+    EXPECT_EQ(s.status, FrameStatus::kOk) << "frame " << k;
+    double sum = 0.0;
+    for (int i = 0; i <= c.elements; ++i) {
+      sum += (tracker.node_position(i) - truth.node(i)).squaredNorm();
+    }
+    const double rms = std::sqrt(sum / (c.elements + 1));
+    run.mean_rms += rms / frames;
+    run.max_rms = std::max(run.max_rms, rms);
+    run.iterations += double(s.iterations) / frames;
+    run.searches += double(s.searches) / frames;
+  }
+  return run;
+}
+
+TEST(Tracker, ShortElementsAreNotStretchedByTheImageTerm) {
+  const ShortElementRun scaled = track_short_elements(0.0);     // ℓ = 4·half width = 12 px
+  const ShortElementRun unscaled = track_short_elements(1e-6);  // ℓ = L₀ = 5 px
+  std::printf(
+      "40 elements of 5 px: node RMS mean %.3f max %.3f px, %.2f iterations, %.2f searches "
+      "per frame; scaled to L0: %.3f / %.3f px, %.2f iterations, %.2f searches\n",
+      scaled.mean_rms, scaled.max_rms, scaled.iterations, scaled.searches, unscaled.mean_rms,
+      unscaled.max_rms, unscaled.iterations, unscaled.searches);
+  EXPECT_LT(scaled.max_rms, 0.2);
+  EXPECT_LT(scaled.mean_rms, 0.5 * unscaled.mean_rms);
+  EXPECT_LT(scaled.iterations, unscaled.iterations);
 }
 
 }  // namespace

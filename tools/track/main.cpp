@@ -74,6 +74,7 @@ TrackInit read_init(const std::string& path) {
     const std::map<std::string, double*> reals = {
         {"min_strength", &t.min_strength},
         {"image_stiffness", &t.image_stiffness},
+        {"min_image_length_px", &t.min_image_length_px},
         {"bending_memory", &t.bending_memory},
         {"research_px", &t.research_px},
         {"min_relative_strength", &t.min_relative_strength},
