@@ -239,6 +239,23 @@ TEST(GaussNewton, DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers) {
   std::cout << "ICP: surface error max " << worst << " m = " << 100 * worst / diagonal
             << "% of the diagonal (truth moved up to " << moved << " m); plastic field "
             << "correlation " << correlation << "\n";
+  // Point-to-surface (symmetric, sampled at the vertices of each surface).
+  auto surface_distance = [&](const Eigen::VectorXd& from, const Eigen::VectorXd& to) {
+    auto query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
+    EXPECT_EQ(query->update(to), SurfaceUpdateStatus::kOk);
+    double m = 0.0, sum = 0.0;
+    for (int v : surface) {
+      const double d = query->query(Eigen::Vector3d(from.segment<3>(3 * v))).distance;
+      m = std::max(m, d);
+      sum += d / surface.size();
+    }
+    std::cout << "  max " << 100 * m / diagonal << "%, mean " << 100 * sum / diagonal << "%\n";
+    return m;
+  };
+  std::cout << "result to truth surface:\n";
+  surface_distance(result.x, x_true);
+  std::cout << "truth to result surface:\n";
+  surface_distance(x_true, result.x);
   EXPECT_LT(result.summary.marker_error_max, 1e-3 * diagonal);
   EXPECT_LT(worst, 0.005 * diagonal);
   EXPECT_GT(correlation, 0.8);
