@@ -202,6 +202,8 @@ const char* to_string(ConstraintStatus status) {
       return "non-finite target";
     case ConstraintStatus::kInvalidWeight:
       return "weight c_k not finite and >= 0";
+    case ConstraintStatus::kInvalidNormal:
+      return "plane normal neither zero nor of unit length";
     case ConstraintStatus::kIndexOutOfRange:
       return "no constraint with that index";
   }
@@ -244,6 +246,10 @@ std::optional<PointConstraints> PointConstraints::create(Eigen::Index num_vertic
     if (!std::isfinite(c.weight) || !(c.weight >= 0.0)) {
       return fail(ConstraintStatus::kInvalidWeight, k);
     }
+    const double normal_length = c.plane_normal.norm();
+    if (!(normal_length == 0.0 || std::abs(normal_length - 1.0) <= 1e-6)) {
+      return fail(ConstraintStatus::kInvalidNormal, k);
+    }
   }
 
   PointConstraints set;
@@ -253,11 +259,18 @@ std::optional<PointConstraints> PointConstraints::create(Eigen::Index num_vertic
   std::vector<Eigen::Triplet<double>> entries;
   entries.reserve(static_cast<std::size_t>(12 * K));
   for (Eigen::Index k = 0; k < K; ++k) {
-    const EmbeddedPoint& p = set.constraints_[static_cast<std::size_t>(k)].point;
+    const PointConstraint& c = set.constraints_[static_cast<std::size_t>(k)];
+    const EmbeddedPoint& p = c.point;
     set.vertices_.row(k) = tets.row(p.tet);
+    const Eigen::Matrix3d metric = c.metric();
     for (int a = 0; a < 4; ++a) {
-      for (int d = 0; d < 3; ++d)
-        entries.emplace_back(3 * k + d, 3 * tets(p.tet, a) + d, p.weights[a]);
+      for (int d = 0; d < 3; ++d) {
+        for (int e = 0; e < 3; ++e) {
+          if (metric(d, e) != 0.0) {
+            entries.emplace_back(3 * k + d, 3 * tets(p.tet, a) + e, p.weights[a] * metric(d, e));
+          }
+        }
+      }
     }
   }
   set.stacked_selection_.resize(3 * K, 3 * num_vertices);
@@ -280,10 +293,12 @@ void PointConstraints::assemble_hessian() {
     const PointConstraint& c = constraints_[index(k)];
     // c_k A_kᵀA_k restricted to the tet: c_k (w wᵀ ⊗ I₃).
     block.setZero();
+    const Eigen::Matrix3d metric = c.metric();
+    const Eigen::Matrix3d PtP = metric.transpose() * metric;  // A_kᵀA_k's 3x3 blocks: w_a w_b PᵀP
     for (int a = 0; a < 4; ++a) {
       for (int b = 0; b < 4; ++b) {
         const double value = c.weight * c.point.weights[a] * c.point.weights[b];
-        for (int d = 0; d < 3; ++d) block(3 * a + d, 3 * b + d) = value;
+        block.block<3, 3>(3 * a, 3 * b) = value * PtP;
       }
     }
     assembly_.add_element_matrix(k, block);
@@ -293,9 +308,15 @@ void PointConstraints::assemble_hessian() {
 Eigen::SparseMatrix<double> PointConstraints::selection_matrix(Eigen::Index k) const {
   std::vector<Eigen::Triplet<double>> entries;
   const PointConstraint& c = constraints_[index(k)];
+  const Eigen::Matrix3d metric = c.metric();
   for (int a = 0; a < 4; ++a) {
-    for (int d = 0; d < 3; ++d)
-      entries.emplace_back(d, 3 * vertices_(k, a) + d, c.point.weights[a]);
+    for (int d = 0; d < 3; ++d) {
+      for (int e = 0; e < 3; ++e) {
+        if (metric(d, e) != 0.0) {
+          entries.emplace_back(d, 3 * vertices_(k, a) + e, c.point.weights[a] * metric(d, e));
+        }
+      }
+    }
   }
   Eigen::SparseMatrix<double> A(3, num_dofs());
   A.setFromTriplets(entries.begin(), entries.end());
@@ -312,7 +333,8 @@ Eigen::Vector3d PointConstraints::position(Eigen::Index k,
 
 Eigen::Vector3d PointConstraints::residual(Eigen::Index k,
                                            const Eigen::Ref<const Eigen::VectorXd>& x) const {
-  return position(k, x) - constraints_[index(k)].target;
+  const PointConstraint& c = constraints_[index(k)];
+  return c.metric() * (position(k, x) - c.target);
 }
 
 double PointConstraints::energy(const Eigen::Ref<const Eigen::VectorXd>& x) const {
@@ -328,7 +350,7 @@ void PointConstraints::gradient(const Eigen::Ref<const Eigen::VectorXd>& x,
   gradient.setZero();
   for (Eigen::Index k = 0; k < size(); ++k) {
     const PointConstraint& c = constraints_[index(k)];
-    const Eigen::Vector3d r = c.weight * residual(k, x);
+    const Eigen::Vector3d r = c.weight * (c.metric().transpose() * residual(k, x));  // PᵀP(·)
     for (int a = 0; a < 4; ++a) gradient.segment<3>(3 * vertices_(k, a)) += c.point.weights[a] * r;
   }
 }

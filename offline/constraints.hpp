@@ -125,6 +125,15 @@ struct PointConstraint {
   EmbeddedPoint point;                               ///< the material point (S^k and w^k of eq. 53)
   Eigen::Vector3d target = Eigen::Vector3d::Zero();  ///< y_k, world position, metres (b_k = −y_k)
   double weight = 1.0;  ///< c_k, finite and ≥ 0, newtons per metre (energy ½c_k‖·‖² in joules)
+  /// Zero (the default): the whole offset counts. A unit vector n: only the offset along n counts
+  /// (point to plane: A_k := n·nᵀ·A_k, b_k := n·nᵀ·b_k), so the point may slide in the plane
+  /// through the target normal to n; for ICP markers, n is the surface normal at the closest point.
+  Eigen::Vector3d plane_normal = Eigen::Vector3d::Zero();
+  /// The 3x3 P with A_k = P·[w₁I₃ … w₄I₃]·S^k: I₃, or the projector n·nᵀ for a plane normal n.
+  Eigen::Matrix3d metric() const {
+    return plane_normal.isZero(0.0) ? Eigen::Matrix3d::Identity()
+                                    : Eigen::Matrix3d(plane_normal * plane_normal.transpose());
+  }
 };
 
 enum class ConstraintStatus {
@@ -135,6 +144,7 @@ enum class ConstraintStatus {
                         ///< not be in [0, 1] (extrapolated points)
   kNonFiniteTarget,     ///< target has NaN or infinite coordinates
   kInvalidWeight,       ///< c_k is NaN, infinite or negative
+  kInvalidNormal,       ///< plane_normal neither zero nor a unit vector (±1e-6)
   kIndexOutOfRange,     ///< (set_target / set_weight) no constraint with that index
 };
 
@@ -171,19 +181,23 @@ class PointConstraints {
   /// The four vertex indices of constraint k's tet (row k of a #constraints by 4 matrix).
   const Eigen::MatrixXi& vertices() const { return vertices_; }
 
-  /// A_k (3 x 3n, eq. 53): 3x3 blocks w_a I₃ at the columns of the tet's vertices. Allocates.
+  /// A_k (3 x 3n, eq. 53): 3x3 blocks w_a·P (P = metric(): I₃, or n·nᵀ for a plane normal) at the
+  /// columns of the tet's vertices. Allocates.
   Eigen::SparseMatrix<double> selection_matrix(Eigen::Index k) const;
   /// All A_k stacked, [A_1; A_2; …] (3K x 3n), built at create() (the Z of eq. 12 before
   /// the √c_k scaling and J).
   const Eigen::SparseMatrix<double>& stacked_selection() const { return stacked_selection_; }
-  /// b_k = −y_k (eq. 54).
-  Eigen::Vector3d offset(Eigen::Index k) const { return -constraints_[index(k)].target; }
+  /// b_k = −P·y_k (eq. 54).
+  Eigen::Vector3d offset(Eigen::Index k) const {
+    const PointConstraint& c = constraints_[index(k)];
+    return -(c.metric() * c.target);
+  }
   /// c_k.
   double weight(Eigen::Index k) const { return constraints_[index(k)].weight; }
 
   /// A_k x: current position of constraint k's material point (metres).
   Eigen::Vector3d position(Eigen::Index k, const Eigen::Ref<const Eigen::VectorXd>& x) const;
-  /// A_k x + b_k (metres).
+  /// A_k x + b_k = P·(position − y_k) (metres).
   Eigen::Vector3d residual(Eigen::Index k, const Eigen::Ref<const Eigen::VectorXd>& x) const;
 
   /// ½ Σ c_k ‖A_k x + b_k‖² (joules, eq. 55). x: 3n.

@@ -87,6 +87,9 @@ class Registration {
   // The ICP markers' weight relative to alpha in the coming iteration (GaussNewtonOptions::
   // icp_weight_ramp).
   void set_icp_weight_scale(double scale) { icp_weight_scale_ = scale; }
+  // Whether the ICP markers count point to plane in the coming iteration (GaussNewtonOptions::
+  // icp_point_to_plane_iterations).
+  void set_icp_point_to_plane(bool on) { icp_point_to_plane_ = on; }
 
   // Free objects: the stabilisation set D = the material points of the stage's terms (§3.6), and
   // the frame (R, t) that x satisfies now; line-search equilibria keep it.
@@ -117,7 +120,7 @@ class Registration {
       std::vector<double> weights;
       for (Eigen::Index k = 0; k < terms->size(); ++k) {
         from.push_back(terms->position(k, at));
-        to.push_back(-terms->offset(k));
+        to.push_back(terms->constraints()[static_cast<std::size_t>(k)].target);
         weights.push_back(terms->weight(k));
       }
       const std::optional<RigidTransform> fit = fit_rigid_transform(from, to, weights);
@@ -158,6 +161,7 @@ class Registration {
         c.kind = ConstraintKind::kIcpMarker;
         c.point = closest_point_->closest(z);
         c.target = z;
+        if (icp_point_to_plane_) c.plane_normal = closest_point_->normal(z);
         c.weight = options_.alpha * icp_weight_scale_;
         list.push_back(c);
       }
@@ -259,6 +263,7 @@ class Registration {
   RigidFrame frame_;
   double diagonal_ = 1.0;  // of the template's bounding box: the scale of "no rigid motion left"
   double icp_weight_scale_ = 1.0;
+  bool icp_point_to_plane_ = false;
 };
 
 // NLopt's C callback for the constant-s fit.
@@ -500,6 +505,9 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
       const std::string field = "icp_weight_ramp[" + std::to_string(i) + "]";
       return invalid(field.c_str(), f, "must be in (0, 1]");
     }
+  }
+  if (icp_point_to_plane_iterations < 0) {
+    return invalid("icp_point_to_plane_iterations", icp_point_to_plane_iterations, "must be >= 0");
   }
   if (!(min_step >= 0.0 && min_step < 1.0))
     return invalid("min_step", min_step, "must be in [0, 1)");
@@ -896,10 +904,15 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
       record.stage = stage;
       record.iteration = iteration;
       // A function of the iteration alone, so that a resumed run weighs exactly as the first.
-      const bool ramping = stage == RegistrationStage::kIcpMarkers &&
-                           static_cast<std::size_t>(iteration) <= options.icp_weight_ramp.size();
+      const bool weight_ramp =
+          stage == RegistrationStage::kIcpMarkers &&
+          static_cast<std::size_t>(iteration) <= options.icp_weight_ramp.size();
+      const bool plane_phase = stage == RegistrationStage::kIcpMarkers &&
+                               iteration <= options.icp_point_to_plane_iterations;
+      const bool ramping = weight_ramp || plane_phase;  // the stopping tests wait for both
       r.set_icp_weight_scale(
-          ramping ? options.icp_weight_ramp[static_cast<std::size_t>(iteration - 1)] : 1.0);
+          weight_ramp ? options.icp_weight_ramp[static_cast<std::size_t>(iteration - 1)] : 1.0);
+      r.set_icp_point_to_plane(plane_phase);
       auto terms = r.objective_constraints(stage, r.x, &error);
       if (!terms) return fail(GaussNewtonTermination::kInvalidInput, error);
       const double before = r.objective(r.s, r.x, *terms);
@@ -1036,6 +1049,17 @@ RegistrationResult register_free(const PlasticElasticEnergy& energy,
                                  const GaussNewtonCheckpoint* resume) {
   return run_registration(energy, constraints, closest_point, options, progress, checkpoint, resume,
                           true);
+}
+
+Eigen::Vector3d BoundaryClosestPoint::normal(const Eigen::Vector3d& query) const {
+  const SurfacePoint hit = surface_->query(query);
+  if (!hit.ok() || x_.size() == 0) return Eigen::Vector3d::Zero();
+  const BoundarySurface& boundary = surface_->boundary();
+  const Eigen::Vector3d a = boundary.corner(hit.face, 0, x_), b = boundary.corner(hit.face, 1, x_),
+                        c = boundary.corner(hit.face, 2, x_);
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const double length = n.norm();
+  return length > 0.0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
 }
 
 }  // namespace sinew::offline

@@ -51,6 +51,11 @@ class ClosestSurfacePoint {
   virtual void update(const Eigen::Ref<const Eigen::VectorXd>& x) = 0;
   /// The material point closest to query on the current surface.
   virtual EmbeddedPoint closest(const Eigen::Vector3d& query) const = 0;
+  /// A unit normal of the current surface at the point closest to query (either orientation);
+  /// zero when the implementation has none (the marker then counts point to point).
+  virtual Eigen::Vector3d normal(const Eigen::Vector3d& /*query*/) const {
+    return Eigen::Vector3d::Zero();
+  }
 };
 
 /// ClosestSurfacePoint on the CGAL AABB tree of offline/surface_closest_point.hpp.
@@ -58,13 +63,19 @@ class BoundaryClosestPoint final : public ClosestSurfacePoint {
  public:
   /// surface must outlive this object.
   explicit BoundaryClosestPoint(SurfaceClosestPoint& surface) : surface_(&surface) {}
-  void update(const Eigen::Ref<const Eigen::VectorXd>& x) override { surface_->update(x); }
+  void update(const Eigen::Ref<const Eigen::VectorXd>& x) override {
+    surface_->update(x);
+    x_ = x;
+  }
   EmbeddedPoint closest(const Eigen::Vector3d& query) const override {
     return surface_->query(query).embedded;
   }
+  /// The normal of the boundary face holding the closest point.
+  Eigen::Vector3d normal(const Eigen::Vector3d& query) const override;
 
  private:
   SurfaceClosestPoint* surface_;
+  Eigen::VectorXd x_;  // positions of the last update
 };
 
 enum class RegistrationStage {
@@ -100,6 +111,14 @@ struct GaussNewtonOptions {
   /// (tests/tools/test_register_femur.cpp) {1e-3 ×3, 1e-2 ×3, 1e-1 ×3} takes the mean symmetric
   /// surface distance from 0.57 to 0.41 mm.
   std::vector<double> icp_weight_ramp;
+  /// ICP-stage continuation: in the stage's first icp_point_to_plane_iterations iterations the
+  /// markers count point to plane, only their offset along the surface normal at the closest point
+  /// (PointConstraint::plane_normal), so a marker no longer pins the material point it first
+  /// landed on and the surface slides under it towards the smoother plastic field; the iterations
+  /// after it are the paper's point to point (appendix F), which meets the markers. The stopping
+  /// tests wait for them, as for icp_weight_ramp (both may be given: each counts from the
+  /// stage's first iteration). ≥ 0; 0 (the default): point to point throughout.
+  int icp_point_to_plane_iterations = 0;
   /// A stage stops when the line search's best η is below this (the paper uses 0.01); in [0, 1).
   double min_step = 0.01;
   /// Largest η tried by the line search; η = 1 is the full Gauss–Newton step. In (0, 4].

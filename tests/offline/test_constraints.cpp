@@ -223,6 +223,67 @@ TEST(PointConstraints, EnergyGradientHessianMatchDefinitionAndFiniteDifferences)
             ConstraintStatus::kNonFiniteTarget);
 }
 
+// Point to plane (PointConstraint::plane_normal): only the offset along n counts. The literal
+// appendix-F sums with A_k = n·nᵀ·[w_a I₃]·S^k and b_k = −n·nᵀ·y_k give the energy, gradient and
+// Hessian, finite differences agree, and sliding the point within the plane costs nothing.
+TEST(PointConstraints, PlaneNormalsCountOnlyTheOffsetAlongTheNormal) {
+  auto& gen = sinew::testing::rng();
+  ConstraintFixture f(gen);
+  for (std::size_t k = 0; k < f.constraints.size(); k += 2) {
+    f.constraints[k].plane_normal = sinew::testing::random_vector(3, 1.0, gen).normalized();
+  }
+  auto set = PointConstraints::create(f.X.size() / 3, f.mesh.tets, f.constraints);
+  ASSERT_TRUE(set);
+  const Eigen::VectorXd x = f.X + sinew::testing::random_vector(f.X.size(), 0.2, gen);
+  double energy = 0.0;
+  Eigen::VectorXd gradient = Eigen::VectorXd::Zero(x.size());
+  Eigen::MatrixXd hessian = Eigen::MatrixXd::Zero(x.size(), x.size());
+  for (Eigen::Index k = 0; k < set->size(); ++k) {
+    const PointConstraint& c = f.constraints[static_cast<std::size_t>(k)];
+    Eigen::MatrixXd A_k = set->selection_matrix(k);
+    const Eigen::Vector3d r = A_k * x + set->offset(k);
+    if (k % 2 == 0) {
+      const Eigen::Vector3d& n = c.plane_normal;
+      // The offset along n, and nothing across it.
+      const Eigen::Vector3d full = set->position(k, x) - c.target;
+      EXPECT_LT((r - n * n.dot(full)).norm(), 1e-13);
+      EXPECT_LT((A_k - n * n.transpose() * A_k).norm(), 1e-13);
+    }
+    energy += 0.5 * set->weight(k) * r.squaredNorm();
+    gradient += set->weight(k) * A_k.transpose() * r;
+    hessian += set->weight(k) * A_k.transpose() * A_k;
+  }
+  EXPECT_NEAR(set->energy(x), energy, 1e-13 * energy);
+  Eigen::VectorXd g(x.size());
+  set->gradient(x, g);
+  EXPECT_LT((g - gradient).norm(), 1e-13 * gradient.norm());
+  EXPECT_LT((Eigen::MatrixXd(set->hessian()) - hessian).norm(), 1e-13 * hessian.norm());
+  const auto E = [&](const Eigen::VectorXd& y) { return set->energy(y); };
+  const auto G = [&](const Eigen::VectorXd& y) -> Eigen::VectorXd {
+    Eigen::VectorXd out(y.size());
+    set->gradient(y, out);
+    return out;
+  };
+  EXPECT_TRUE(derivatives_match(g, sinew::testing::fd_gradient(E, x, 1e-5), 1e-8));
+  EXPECT_TRUE(derivatives_match(Eigen::MatrixXd(set->hessian()),
+                                sinew::testing::fd_jacobian(G, x, 1e-5), 1e-8));
+
+  // A single point-to-plane constraint: moving the whole mesh within its plane leaves the energy
+  // unchanged; moving it along the normal does not.
+  PointConstraint one = f.constraints[0];
+  auto single = PointConstraints::create(f.X.size() / 3, f.mesh.tets, {one});
+  ASSERT_TRUE(single);
+  const Eigen::Vector3d n = one.plane_normal;
+  const Eigen::Vector3d along_plane = n.unitOrthogonal();
+  Eigen::VectorXd slid = x, lifted = x;
+  for (Eigen::Index v = 0; v < x.size() / 3; ++v) {
+    slid.segment<3>(3 * v) += 0.3 * along_plane;
+    lifted.segment<3>(3 * v) += 0.3 * n;
+  }
+  EXPECT_NEAR(single->energy(slid), single->energy(x), 1e-12);
+  EXPECT_GT(std::abs(single->energy(lifted) - single->energy(x)), 1e-3);
+}
+
 TEST(PointConstraints, InvalidConstraintsAreReported) {
   auto& gen = sinew::testing::rng();
   ConstraintFixture f(gen);
@@ -248,6 +309,9 @@ TEST(PointConstraints, InvalidConstraintsAreReported) {
   c = f.constraints;
   c[6].target[2] = std::numeric_limits<double>::infinity();
   expect_failure(c, ConstraintStatus::kNonFiniteTarget, 6);
+  c = f.constraints;
+  c[2].plane_normal = Eigen::Vector3d(0.0, 0.5, 0.0);
+  expect_failure(c, ConstraintStatus::kInvalidNormal, 2);
 
   sinew::offline::ConstraintCheck check;
   EXPECT_FALSE(PointConstraints::create(n - 1, f.mesh.tets, f.constraints,

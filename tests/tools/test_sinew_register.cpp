@@ -490,7 +490,7 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
        }),
        {},
        "case.json: unknown key 'alhpa' in weights (expected one of: alpha, beta, "
-       "attachment_stiffness, icp_weight_ramp)",
+       "attachment_stiffness, icp_weight_ramp, icp_point_to_plane_iterations)",
        "case.json"},
       {"scan_image_missing",
        with([](auto& j) {
@@ -512,6 +512,13 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
        }),
        {},
        "case.json: weights.icp_weight_ramp[1] = 2 must be in (0, 1]",
+       "case.json"},
+      {"point_to_plane_iterations_negative",
+       with([](auto& j) {
+         j["weights"] = {{"icp_point_to_plane_iterations", -1}};
+       }),
+       {},
+       "case.json: weights.icp_point_to_plane_iterations = -1 must be in [0, 100000]",
        "case.json"},
       {"far_attachment",
        with([](auto& j) {

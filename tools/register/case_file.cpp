@@ -290,7 +290,8 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
   if (root.has("weights")) {
     const JsonCursor w = root.at("weights");
-    w.expect_keys({"alpha", "beta", "attachment_stiffness", "icp_weight_ramp"});
+    w.expect_keys({"alpha", "beta", "attachment_stiffness", "icp_weight_ramp",
+                   "icp_point_to_plane_iterations"});
     if (w.has("alpha")) c.weights.alpha = w.at("alpha").positive_number();
     if (w.has("beta")) {
       const double beta = w.at("beta").finite_number();
@@ -308,6 +309,10 @@ RegistrationCase read_registration_case(const std::string& path) {
         if (!(f > 0 && f <= 1)) ramp.at(i).fail("= " + number(f) + " must be in (0, 1]");
         c.weights.icp_weight_ramp.push_back(f);
       }
+    }
+    if (w.has("icp_point_to_plane_iterations")) {
+      c.weights.icp_point_to_plane_iterations =
+          integer_in(w.at("icp_point_to_plane_iterations"), 0, 100000);
     }
   }
   if (root.has("stop")) {

@@ -92,6 +92,11 @@ struct RegistrationWeights {
   /// ICP continuation (offline::GaussNewtonOptions::icp_weight_ramp): factors of alpha for the
   /// first ICP iterations, each in (0, 1]. Default: 1e-3, 1e-2, 1e-1, three iterations each.
   std::vector<double> icp_weight_ramp = {1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2, 1e-1, 1e-1, 1e-1};
+  /// ICP iterations whose markers count point to plane before point to point
+  /// (offline::GaussNewtonOptions::icp_point_to_plane_iterations); ≥ 0. Default 10 (measured:
+  /// femur pair 0.391 → 0.335 mm mean symmetric distance; gluteus medius 2.04 / 0.73 → 0.73 /
+  /// 0.58 mm, worst 13.6 → 5.6 mm).
+  int icp_point_to_plane_iterations = 10;
 };
 
 struct RegistrationStop {

@@ -484,6 +484,7 @@ int run(const RunRequest& request) {
   options.max_marker_error = max_marker_error / frame.scale;
   options.min_step = c.stop.min_step;
   options.icp_weight_ramp = c.weights.icp_weight_ramp;
+  options.icp_point_to_plane_iterations = c.weights.icp_point_to_plane_iterations;
   if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
 
   // What a checkpoint must match to be resumed here: mode, mesh, markers, output surface, options.

@@ -1,5 +1,6 @@
 #include "tools/register/surface_distance.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -115,6 +116,15 @@ SurfaceDistanceStats vertex_to_surface_distances(const offline::io::SurfaceMesh&
     stats.max = std::max(stats.max, d);
   }
   return stats;
+}
+
+Eigen::Vector3d SurfaceDistance::triangle_normal(Eigen::Index f) const {
+  const Eigen::Vector3d a = surface_.vertices.row(surface_.triangles(f, 0)).transpose();
+  const Eigen::Vector3d b = surface_.vertices.row(surface_.triangles(f, 1)).transpose();
+  const Eigen::Vector3d c = surface_.vertices.row(surface_.triangles(f, 2)).transpose();
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const double length = n.norm();
+  return length > 0.0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
 }
 
 }  // namespace sinew::tools

@@ -32,6 +32,9 @@ class SurfaceDistance {
   };
   Closest closest(const Eigen::Vector3d& p) const;
 
+  /// Unit normal of triangle f (orientation as given; zero for a degenerate triangle).
+  Eigen::Vector3d triangle_normal(Eigen::Index f) const;
+
  private:
   Eigen::Index cell_index(const Eigen::Vector3i& c) const {
     return (static_cast<Eigen::Index>(c.z()) * dims_.y() + c.y()) * dims_.x() + c.x();

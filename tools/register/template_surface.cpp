@@ -113,4 +113,8 @@ offline::EmbeddedPoint TemplateSurfaceClosestPoint::closest(const Eigen::Vector3
   return points_[static_cast<std::size_t>(triangles_(c.triangle, corner))];
 }
 
+Eigen::Vector3d TemplateSurfaceClosestPoint::normal(const Eigen::Vector3d& query) const {
+  return deformed_->triangle_normal(deformed_->closest(query).triangle);
+}
+
 }  // namespace sinew::tools

@@ -36,6 +36,8 @@ class TemplateSurfaceClosestPoint final : public offline::ClosestSurfacePoint {
 
   void update(const Eigen::Ref<const Eigen::VectorXd>& x) override;
   offline::EmbeddedPoint closest(const Eigen::Vector3d& query) const override;
+  /// The normal of the deformed template triangle holding the closest point.
+  Eigen::Vector3d normal(const Eigen::Vector3d& query) const override;
 
  private:
   common::TetIndices tets_;
