@@ -268,7 +268,7 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options) {
 // (PointToPlaneIterationsLetIcpMarkersSlide) it reaches a field 40x smoother than the truth
 // (0.0011) through the same markers, 3.0% off at the vertices and point to surface (0.22% mean,
 // correlation 0.97): 14 unlabelled points do not pin this truth down. With known correspondences
-// (landmarks at the same 14 vertices) it is 0.61%; on a 12,288-tet bar (5%: 62 markers) point to
+// (landmarks at the same 14 vertices) it is 0.61%; on a 12,288-tet bar (5%: 57 markers) point to
 // plane gives 1.0% point to surface (3.4% at the vertices).
 TEST(GaussNewton, DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers) {
   GaussNewtonOptions options;
