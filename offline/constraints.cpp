@@ -293,12 +293,11 @@ void PointConstraints::assemble_hessian() {
     const PointConstraint& c = constraints_[index(k)];
     // c_k A_kᵀA_k restricted to the tet: c_k (w wᵀ ⊗ I₃).
     block.setZero();
-    const Eigen::Matrix3d metric = c.metric();
-    const Eigen::Matrix3d PtP = metric.transpose() * metric;  // A_kᵀA_k's 3x3 blocks: w_a w_b PᵀP
+    const Eigen::Matrix3d metric = c.metric();  // A_kᵀA_k's 3x3 blocks: w_a w_b PᵀP = w_a w_b P
     for (int a = 0; a < 4; ++a) {
       for (int b = 0; b < 4; ++b) {
         const double value = c.weight * c.point.weights[a] * c.point.weights[b];
-        block.block<3, 3>(3 * a, 3 * b) = value * PtP;
+        block.block<3, 3>(3 * a, 3 * b) = value * metric;
       }
     }
     assembly_.add_element_matrix(k, block);
@@ -350,7 +349,8 @@ void PointConstraints::gradient(const Eigen::Ref<const Eigen::VectorXd>& x,
   gradient.setZero();
   for (Eigen::Index k = 0; k < size(); ++k) {
     const PointConstraint& c = constraints_[index(k)];
-    const Eigen::Vector3d r = c.weight * (c.metric().transpose() * residual(k, x));  // PᵀP(·)
+    // A_kᵀ(A_k x + b_k) = Sᵀ·P·residual, and residual is already P(·) (P a projector or I).
+    const Eigen::Vector3d r = c.weight * residual(k, x);
     for (int a = 0; a < 4; ++a) gradient.segment<3>(3 * vertices_(k, a)) += c.point.weights[a] * r;
   }
 }

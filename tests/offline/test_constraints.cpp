@@ -167,6 +167,51 @@ TEST(PointConstraints, SelectionMatrixReproducesTheEmbeddedPoint) {
   }
 }
 
+// Appendix F, literally: ½Σ c_k‖A_k x + b_k‖², Σ c_k A_kᵀ(A_k x + b_k), Σ c_k A_kᵀA_k, from the
+// set's own A_k (selection_matrix) and b_k (offset).
+struct AppendixFSums {
+  double energy = 0.0;
+  Eigen::VectorXd gradient;
+  Eigen::MatrixXd hessian;
+};
+
+AppendixFSums appendix_f_sums(const PointConstraints& set, const Eigen::VectorXd& x) {
+  AppendixFSums sums;
+  sums.gradient = Eigen::VectorXd::Zero(x.size());
+  sums.hessian = Eigen::MatrixXd::Zero(x.size(), x.size());
+  for (Eigen::Index k = 0; k < set.size(); ++k) {
+    const Eigen::MatrixXd A_k = set.selection_matrix(k);
+    const Eigen::Vector3d r = A_k * x + set.offset(k);
+    sums.energy += 0.5 * set.weight(k) * r.squaredNorm();
+    sums.gradient += set.weight(k) * A_k.transpose() * r;
+    sums.hessian += set.weight(k) * A_k.transpose() * A_k;
+  }
+  return sums;
+}
+
+// energy(), gradient() and hessian() equal the literal sums.
+void expect_matches_sums(const PointConstraints& set, const Eigen::VectorXd& x,
+                         const AppendixFSums& sums) {
+  EXPECT_NEAR(set.energy(x), sums.energy, 1e-13 * sums.energy);
+  Eigen::VectorXd g(x.size());
+  set.gradient(x, g);
+  EXPECT_LT((g - sums.gradient).norm(), 1e-13 * sums.gradient.norm());
+  EXPECT_LT((Eigen::MatrixXd(set.hessian()) - sums.hessian).norm(), 1e-13 * sums.hessian.norm());
+}
+
+// gradient() and hessian() match finite differences of energy() and gradient().
+void expect_derivatives_match_fd(const PointConstraints& set, const Eigen::VectorXd& x) {
+  const auto E = [&](const Eigen::VectorXd& y) { return set.energy(y); };
+  const auto G = [&](const Eigen::VectorXd& y) -> Eigen::VectorXd {
+    Eigen::VectorXd out(y.size());
+    set.gradient(y, out);
+    return out;
+  };
+  EXPECT_TRUE(derivatives_match(G(x), sinew::testing::fd_gradient(E, x, 1e-5), 1e-8));
+  EXPECT_TRUE(derivatives_match(Eigen::MatrixXd(set.hessian()),
+                                sinew::testing::fd_jacobian(G, x, 1e-5), 1e-8));
+}
+
 TEST(PointConstraints, EnergyGradientHessianMatchDefinitionAndFiniteDifferences) {
   auto& gen = sinew::testing::rng();
   ConstraintFixture f(gen);
@@ -174,49 +219,23 @@ TEST(PointConstraints, EnergyGradientHessianMatchDefinitionAndFiniteDifferences)
   ASSERT_TRUE(set);
   const Eigen::VectorXd x = f.X + sinew::testing::random_vector(f.X.size(), 0.2, gen);
 
-  // Appendix F, literally: ½Σ c_k‖A_k x + b_k‖², Σ c_k A_kᵀ(A_k x + b_k), Σ c_k A_kᵀA_k.
-  double energy = 0.0;
-  Eigen::VectorXd gradient = Eigen::VectorXd::Zero(x.size());
-  Eigen::MatrixXd hessian = Eigen::MatrixXd::Zero(x.size(), x.size());
-  for (Eigen::Index k = 0; k < set->size(); ++k) {
-    const Eigen::MatrixXd A_k = set->selection_matrix(k);
-    const Eigen::Vector3d r = A_k * x + set->offset(k);
-    energy += 0.5 * set->weight(k) * r.squaredNorm();
-    gradient += set->weight(k) * A_k.transpose() * r;
-    hessian += set->weight(k) * A_k.transpose() * A_k;
-  }
-  ASSERT_GT(energy, 0.1);
-  EXPECT_NEAR(set->energy(x), energy, 1e-13 * energy);
-  Eigen::VectorXd g(x.size());
-  set->gradient(x, g);
-  EXPECT_LT((g - gradient).norm(), 1e-13 * gradient.norm());
-  EXPECT_LT((Eigen::MatrixXd(set->hessian()) - hessian).norm(), 1e-13 * hessian.norm());
-
-  const auto E = [&](const Eigen::VectorXd& y) { return set->energy(y); };
-  const auto G = [&](const Eigen::VectorXd& y) -> Eigen::VectorXd {
-    Eigen::VectorXd out(y.size());
-    set->gradient(y, out);
-    return out;
-  };
-  EXPECT_TRUE(derivatives_match(g, sinew::testing::fd_gradient(E, x, 1e-5), 1e-8));
-  EXPECT_TRUE(derivatives_match(Eigen::MatrixXd(set->hessian()),
-                                sinew::testing::fd_jacobian(G, x, 1e-5), 1e-8));
+  const AppendixFSums sums = appendix_f_sums(*set, x);
+  ASSERT_GT(sums.energy, 0.1);
+  expect_matches_sums(*set, x, sums);
+  expect_derivatives_match_fd(*set, x);
 
   // Upper storage holds the same matrix.
   auto upper = PointConstraints::create(f.X.size() / 3, f.mesh.tets, f.constraints,
                                         sinew::common::PatternStorage::kUpper);
   ASSERT_TRUE(upper);
   const Eigen::MatrixXd H_upper = Eigen::MatrixXd(upper->hessian()).selfadjointView<Eigen::Upper>();
-  EXPECT_LT((H_upper - hessian).norm(), 1e-13 * hessian.norm());
+  EXPECT_LT((H_upper - sums.hessian).norm(), 1e-13 * sums.hessian.norm());
 
   // Re-targeting and re-weighting keep everything consistent (ICP iterations, stages).
   ASSERT_EQ(set->set_target(2, Eigen::Vector3d(0.1, 0.2, 0.3)), ConstraintStatus::kOk);
   ASSERT_EQ(set->set_weight(4, 0.0), ConstraintStatus::kOk);
   ASSERT_EQ(set->set_weight(5, 1234.0), ConstraintStatus::kOk);
-  set->gradient(x, g);
-  EXPECT_TRUE(derivatives_match(g, sinew::testing::fd_gradient(E, x, 1e-5), 1e-8));
-  EXPECT_TRUE(derivatives_match(Eigen::MatrixXd(set->hessian()),
-                                sinew::testing::fd_jacobian(G, x, 1e-5), 1e-8));
+  expect_derivatives_match_fd(*set, x);
   EXPECT_EQ(set->set_weight(7, 1.0), ConstraintStatus::kIndexOutOfRange);
   EXPECT_EQ(set->set_weight(0, -1.0), ConstraintStatus::kInvalidWeight);
   EXPECT_EQ(set->set_target(0, Eigen::Vector3d::Constant(std::nan(""))),
@@ -235,38 +254,18 @@ TEST(PointConstraints, PlaneNormalsCountOnlyTheOffsetAlongTheNormal) {
   auto set = PointConstraints::create(f.X.size() / 3, f.mesh.tets, f.constraints);
   ASSERT_TRUE(set);
   const Eigen::VectorXd x = f.X + sinew::testing::random_vector(f.X.size(), 0.2, gen);
-  double energy = 0.0;
-  Eigen::VectorXd gradient = Eigen::VectorXd::Zero(x.size());
-  Eigen::MatrixXd hessian = Eigen::MatrixXd::Zero(x.size(), x.size());
-  for (Eigen::Index k = 0; k < set->size(); ++k) {
+  for (Eigen::Index k = 0; k < set->size(); k += 2) {
     const PointConstraint& c = f.constraints[static_cast<std::size_t>(k)];
-    Eigen::MatrixXd A_k = set->selection_matrix(k);
+    const Eigen::MatrixXd A_k = set->selection_matrix(k);
     const Eigen::Vector3d r = A_k * x + set->offset(k);
-    if (k % 2 == 0) {
-      const Eigen::Vector3d& n = c.plane_normal;
-      // The offset along n, and nothing across it.
-      const Eigen::Vector3d full = set->position(k, x) - c.target;
-      EXPECT_LT((r - n * n.dot(full)).norm(), 1e-13);
-      EXPECT_LT((A_k - n * n.transpose() * A_k).norm(), 1e-13);
-    }
-    energy += 0.5 * set->weight(k) * r.squaredNorm();
-    gradient += set->weight(k) * A_k.transpose() * r;
-    hessian += set->weight(k) * A_k.transpose() * A_k;
+    const Eigen::Vector3d& n = c.plane_normal;
+    // The offset along n, and nothing across it.
+    const Eigen::Vector3d full = set->position(k, x) - c.target;
+    EXPECT_LT((r - n * n.dot(full)).norm(), 1e-13);
+    EXPECT_LT((A_k - n * n.transpose() * A_k).norm(), 1e-13);
   }
-  EXPECT_NEAR(set->energy(x), energy, 1e-13 * energy);
-  Eigen::VectorXd g(x.size());
-  set->gradient(x, g);
-  EXPECT_LT((g - gradient).norm(), 1e-13 * gradient.norm());
-  EXPECT_LT((Eigen::MatrixXd(set->hessian()) - hessian).norm(), 1e-13 * hessian.norm());
-  const auto E = [&](const Eigen::VectorXd& y) { return set->energy(y); };
-  const auto G = [&](const Eigen::VectorXd& y) -> Eigen::VectorXd {
-    Eigen::VectorXd out(y.size());
-    set->gradient(y, out);
-    return out;
-  };
-  EXPECT_TRUE(derivatives_match(g, sinew::testing::fd_gradient(E, x, 1e-5), 1e-8));
-  EXPECT_TRUE(derivatives_match(Eigen::MatrixXd(set->hessian()),
-                                sinew::testing::fd_jacobian(G, x, 1e-5), 1e-8));
+  expect_matches_sums(*set, x, appendix_f_sums(*set, x));
+  expect_derivatives_match_fd(*set, x);
 
   // A single point-to-plane constraint: moving the whole mesh within its plane leaves the energy
   // unchanged; moving it along the normal does not.
