@@ -933,16 +933,29 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         break;
       }
       // §3.4: keep Fp positive definite (eigenvalues ≥ floor), then search along the result.
+      // When that search finds no decrease and tets were clamped, the projected path
+      // s(η) = clamp(s + η·d) is searched as well (GaussNewtonOptions::projected_search_fallback).
       Eigen::VectorXd target = r.s + step;
       record.clamped_tets = static_cast<int>(
           clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+      const Eigen::VectorXd direction = step;
       step = target - r.s;
+      bool projected = false, best_projected = false;
+      const auto state_at = [&](double eta, Eigen::VectorXd& s_eta) {
+        if (!projected) {
+          s_eta = r.s + eta * step;
+          return;
+        }
+        s_eta = r.s + eta * direction;
+        clamp_plastic_state_eigenvalues(s_eta, options.eigenvalue_floor);
+      };
       const Clock::time_point search_start = Clock::now();
       double best_value = before;
       double best_eta = 0.0;
       Eigen::VectorXd best_x = r.x;
       auto phi = [&](double eta) {
-        const Eigen::VectorXd s_trial = r.s + eta * step;
+        Eigen::VectorXd s_trial;
+        state_at(eta, s_trial);
         Eigen::VectorXd x_trial = r.x;
         // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0.
         if (!r.solve_equilibrium(s_trial, x_trial)) return 1e300 * (1.0 + eta);
@@ -951,6 +964,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
           best_value = value;
           best_eta = eta;
           best_x = x_trial;
+          best_projected = projected;
         }
         return value;
       };
@@ -966,6 +980,12 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
                        options.line_search_evaluations - 1);
       }
+      if (best_eta <= 0.0 && record.clamped_tets > 0 && options.projected_search_fallback) {
+        projected = true;  // its full step is clamp(s + d), already tried
+        record.projected_search = true;
+        brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
+                       options.line_search_evaluations - 1);
+      }
       record.line_search_seconds = seconds_since(search_start);
       record.equilibrium_solves = r.equilibrium_solves - solves_before;
       bool stage_done = false;
@@ -978,7 +998,8 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         termination = GaussNewtonTermination::kLineSearchFailed;
         stage_done = !ramping;
       } else {
-        r.s += best_eta * step;
+        projected = best_projected;
+        state_at(best_eta, r.s);
         r.x = best_x;
         if (free) r.rigid_update(stage, r.x, rigid_rounds(stage));
         record.step = best_eta;

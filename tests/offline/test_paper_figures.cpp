@@ -1,11 +1,11 @@
 // The paper's qualitative figures as measured tests (seed 003).
 // (a) Fig. 4: a 12x3x3-cube beam whose end faces are attached along their y-centre lines on an
-// arc (the attachments BEND it and carry no y information) and whose 19 ICP markers (15% of the
-// side-surface vertices) lie on the bent beam stretched 2x in y. Recovered with the default
-// options: markers met to 0.003 mm, middle cross-section 2.14x wide in y and 1.02x in z,
-// attachments met to 0.06 mm, Fp in the middle third with mean principal stretches 2.16 along y
-// and 0.97 across. Not recovered as well: the shape is within 7.1% of the diagonal of the target
-// (the sagitta is 33 mm against 38 mm, and material slides along the axis: see the comments).
+// arc (the attachments BEND it and carry no y information) and whose 24 ICP markers (15% of the
+// surface vertices) lie on the bent beam stretched 2x in y. Recovered as sinew-register runs it
+// (10 point-to-plane ICP iterations first): markers met to 0.7 µm, middle cross-section 2.006x
+// wide in y and 1.003x in z, Fp in the middle third with mean principal stretches 2.00 along y and
+// 1.03 across, the surface within 0.88% of the diagonal of the target. Material still slides along
+// the axis (see the comments). A finer mesh checks the projected line search.
 // (b) Fig. 2: the "FEM static" baseline (the template deformed purely elastically, s = identity,
 // under a stiff point spring) makes a spike at the constrained point (ratio 5.1), while the
 // plastic-strain registration with the same point as a landmark spreads it (ratio 1.14); ratio =
@@ -78,14 +78,18 @@ struct BendStretch {
   }
 };
 
-TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
-  // 12x3x3 cubes of 2.5 cm: 0.3 x 0.075 x 0.075 m, 648 tets.
-  constexpr int nx = 12, ny = 3, nz = 3;
-  constexpr double h = 0.025;
+// The Fig. 4 case on the beam of 12x3x3 cubes of 2.5 cm (0.3 x 0.075 x 0.075 m, 648 tets) refined
+// `refine` times per axis, registered with `options`; checks the recovery against the target
+// (shape within shape_tolerance of the diagonal) and returns the run's summary.
+GaussNewtonSummary check_fig4(int refine, bool end_face_markers, const GaussNewtonOptions& options,
+                              double shape_tolerance) {
+  const int nx = 12 * refine, ny = 3 * refine, nz = 3 * refine;
+  const double h = 0.025 / refine;
   const BoxGrid grid{nx, ny, nz};
   const testing::TetMesh mesh = testing::make_box_mesh(nx, ny, nz, h);
   const auto energy = PlasticElasticEnergy::create(mesh.rest_positions, mesh.tets, soft_tissue());
-  ASSERT_TRUE(energy.has_value());
+  EXPECT_TRUE(energy.has_value());
+  if (!energy) return {};
   const double length = nx * h, width = ny * h;
   BendStretch target;
   target.length = length;
@@ -100,13 +104,14 @@ TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
   // where the bend puts it. They fix the bend and all rigid motions but say nothing about the
   // y-stretch, which must come from the ICP markers.
   auto locator = TetPointLocator::create(mesh.rest_positions, mesh.tets);
-  ASSERT_TRUE(locator.has_value());
+  EXPECT_TRUE(locator.has_value());
+  if (!locator) return {};
   RegistrationConstraints constraints;
   for (double x : {0.0, length}) {
     for (int k = 0; k <= nz; ++k) {
       const Eigen::Vector3d X(x, width / 2, k * h);
       const Embedding e = locator->locate(X);
-      ASSERT_TRUE(e.ok());
+      EXPECT_TRUE(e.ok());
       PointConstraint c;
       c.kind = ConstraintKind::kAttachment;
       c.point = e.point;
@@ -116,14 +121,17 @@ TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
     }
   }
 
-  // ICP markers: 15% of the target's surface vertices (end faces excluded, they are attached),
-  // as unlabelled world points.
+  // ICP markers: 15% of the target's surface vertices, as unlabelled world points. The end faces
+  // count too (end_face_markers): a scan sees them, and only their centre lines are attached.
+  // Without them the ends' outer edges are seen by nothing (648 tets: worst 17 mm there against
+  // 3.2 mm on the sides).
   std::vector<int> candidates;
   for (int v = 0; v < mesh.rest_positions.rows(); ++v) {
     const Eigen::Vector3d X = rest_vertex(mesh, v);
     const bool on_side =
         X.y() < 1e-9 || X.y() > width - 1e-9 || X.z() < 1e-9 || X.z() > width - 1e-9;
-    if (on_side && X.x() > 1e-9 && X.x() < length - 1e-9) candidates.push_back(v);
+    const bool on_end = X.x() < 1e-9 || X.x() > length - 1e-9;
+    if (end_face_markers ? on_side || on_end : on_side && !on_end) candidates.push_back(v);
   }
   std::mt19937 rng(4);
   std::shuffle(candidates.begin(), candidates.end(), rng);
@@ -132,18 +140,19 @@ TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
     constraints.icp_markers.push_back(target(rest_vertex(mesh, candidates[i])));
   }
   auto surface = SurfaceClosestPoint::create(mesh.rest_positions.rows(), mesh.tets);
-  ASSERT_TRUE(surface.has_value());
+  EXPECT_TRUE(surface.has_value());
+  if (!surface) return {};
   BoundaryClosestPoint closest(*surface);
 
-  // Options: the defaults (α = 1e7, β = 1e6 = α/10 as in the paper). The attachment stage (which
-  // follows the constant initial fit, §3.4) sees nothing of the uniform y-stretch (the attachments
-  // lie on the plane y = W/2); before GaussNewtonOptions::attachment_stage_damping_floor its
-  // Gauss–Newton step along that constant mode collapsed Fp_yy to the 0.01 floor (markers 92 mm
-  // off, the middle section 0.22x wide), undoing the initial fit (alone 2.02x wide, 1.00x high).
-  GaussNewtonOptions options;
+  // The attachment stage (which follows the constant initial fit, §3.4) sees nothing of the
+  // uniform y-stretch (the attachments lie on the plane y = W/2); before
+  // GaussNewtonOptions::attachment_stage_damping_floor its Gauss–Newton step along that constant
+  // mode collapsed Fp_yy to the 0.01 floor (markers 92 mm off, the middle section 0.22x wide),
+  // undoing the initial fit (alone 2.02x wide, 1.00x high).
   const RegistrationResult result = register_attached(*energy, constraints, &closest, options);
-  ASSERT_TRUE(result.summary.usable()) << result.summary.full_report();
-  std::cout << marker_count << " ICP markers of " << candidates.size() << " side-surface vertices\n"
+  EXPECT_TRUE(result.summary.usable()) << result.summary.full_report();
+  std::cout << marker_count << " ICP markers of " << candidates.size() << " surface vertices, "
+            << mesh.tets.rows() << " tets\n"
             << result.summary.full_report();
   const Eigen::VectorXd& x = result.x;
   const auto pos = [&](int v) -> Eigen::Vector3d { return x.segment<3>(3 * v); };
@@ -197,8 +206,8 @@ TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
             << " mm (target " << sagitta_true * 1e3 << " mm)\n";
   EXPECT_LT(attachment_error, 1e-3);
   EXPECT_LT(end_error, 0.05 * width);
-  // Not asserted: the sagitta comes out 30 mm against 38 mm (with other marker draws 32–41 mm):
-  // between 19 markers the surface is free to sag, and the two-sided shape error below bounds it.
+  // Not asserted: this sagitta follows material sections, which slide along the axis (648 tets:
+  // 33.6 mm against 38.4 mm); the two-sided shape error below measures the bend itself.
 
   // The shape against the target shape, both ways (the ICP markers carry no correspondence, so
   // material may slide along the surface; vertex-to-vertex errors would count that sliding).
@@ -223,14 +232,10 @@ TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
   std::cout << "Fig. 4: surface to target surface (two-sided, max) " << shape_error * 1e3
             << " mm = " << 100 * shape_error / diagonal << "% of the diagonal; vertex to its "
             << "analytic image " << vertex_error * 1e3 << " mm\n";
-  // The shape is recovered to 7.1% of the diagonal (2.6 cm of stretch and 3.8 cm of bend; other
-  // marker draws gave 4.4–7.5%), but material slides along the axis by up to ~7 cm (vertex
-  // error): the ICP markers cannot see it and the Laplacian hardly penalises a linear axial
-  // stretch gradient (the middle tets' Fp eigenvalues span [0.45, 2.3] although their means are
-  // right). A regression guard, not the paper's claim. With 10 point-to-plane ICP iterations first
-  // (sinew-register's default; GaussNewtonOptions::icp_point_to_plane_iterations): 5.5%, middle
-  // section 2.03x in y and 1.00x across, Fp stretch 2.03 along y, but a sagitta of 29 mm.
-  EXPECT_LT(shape_error, 0.08 * diagonal);
+  // Material still slides along the axis by several cm (vertex error): the ICP markers carry no
+  // correspondence and the Laplacian hardly penalises a linear axial stretch gradient. The shape
+  // is what the markers define, and what is checked.
+  EXPECT_LT(shape_error, shape_tolerance * diagonal);
   // Principal stretches of Fp in the middle third: the one whose direction is closest to y, and
   // the other two.
   double stretch_y = 0.0, stretch_other_min = 1e9, stretch_other_max = 0.0, stretch_other = 0.0;
@@ -265,6 +270,32 @@ TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
             << stretch_other_min << ", " << stretch_other_max << "])\n";
   EXPECT_NEAR(stretch_y, 2.0, 0.3);
   EXPECT_NEAR(stretch_other, 1.0, 0.15);
+  return result.summary;
+}
+
+// Fig. 4 as sinew-register runs it (10 point-to-plane ICP iterations first, its default). Measured:
+// markers met to 0.7 µm, middle section 2.006x in y and 1.003x across, Fp stretch 2.00 along y,
+// the surface within 0.88% of the diagonal of the target (2.8 mm). With the paper's point-to-point
+// ICP throughout (the library default): 2.4%. Before the end faces carried markers: 5.3% (sides
+// alone 1.0%).
+TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
+  GaussNewtonOptions options;
+  options.icp_point_to_plane_iterations = 10;
+  check_fig4(1, true, options, 0.015);
+}
+
+// The same beam at 5,184 tets with markers on the sides only (82). In the first point-to-plane ICP
+// iteration 1,412 tets hit the Fp eigenvalue floor and Φ rises at every η along the clamped step;
+// the projected-path search (GaussNewtonOptions::projected_search_fallback) finds the decrease.
+// Measured: markers met to 0.5 µm, surface within 1.95% of the diagonal (6.2 mm; the worst at the
+// unmarked end faces); without the fallback the stage ended 7.9 mm off its markers, 7.6% of the
+// diagonal off the target. (With the end faces marked too, 97 markers, no search needs it: 1.37%.)
+TEST(PaperFigures, Fig4OnAFinerMeshNeedsTheProjectedSearch) {
+  GaussNewtonOptions options;
+  options.icp_point_to_plane_iterations = 10;
+  const GaussNewtonSummary summary = check_fig4(2, false, options, 0.03);
+  EXPECT_TRUE(std::any_of(summary.iterations.begin(), summary.iterations.end(),
+                          [](const GaussNewtonIteration& it) { return it.projected_search; }));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -105,6 +105,7 @@ nlohmann::json iteration_json(const GaussNewtonIteration& it) {
           {"marker_error_max", hex_double(it.marker_error_max)},
           {"equilibrium_solves", it.equilibrium_solves},
           {"clamped_tets", it.clamped_tets},
+          {"projected_search", it.projected_search},
           {"jacobian_seconds", hex_double(it.jacobian_seconds)},
           {"woodbury_seconds", hex_double(it.woodbury_seconds)},
           {"line_search_seconds", hex_double(it.line_search_seconds)},
@@ -127,6 +128,12 @@ GaussNewtonIteration read_iteration(const Reader& r, const nlohmann::json& j,
       r.integer(r.at(j, "equilibrium_solves", where), where + "equilibrium_solves"));
   it.clamped_tets =
       static_cast<int>(r.integer(r.at(j, "clamped_tets", where), where + "clamped_tets"));
+  // Absent in checkpoints written before the projected-search fallback existed.
+  if (j.contains("projected_search")) {
+    const nlohmann::json& p = j.at("projected_search");
+    if (!p.is_boolean()) r.fail(where + "projected_search", "is not a boolean");
+    it.projected_search = p.get<bool>();
+  }
   it.jacobian_seconds = real("jacobian_seconds");
   it.woodbury_seconds = real("woodbury_seconds");
   it.line_search_seconds = real("line_search_seconds");

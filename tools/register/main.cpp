@@ -666,6 +666,7 @@ int run(const RunRequest& request) {
                           {"marker_error_max", it.marker_error_max * frame.scale},
                           {"equilibrium_solves", it.equilibrium_solves},
                           {"clamped_tets", it.clamped_tets},
+                          {"projected_search", it.projected_search},
                           {"jacobian_seconds", it.jacobian_seconds},
                           {"woodbury_seconds", it.woodbury_seconds},
                           {"line_search_seconds", it.line_search_seconds},
