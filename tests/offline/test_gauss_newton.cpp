@@ -80,8 +80,11 @@ Bar make_bar(int nx = 8, int n = 3, double h = 0.025) {
 }
 
 // The truth: Fp grows along the bar (up to 1.3x), swells transversally in y with a bump in the
-// middle (up to 1.25x), and shears in x-z; symmetric positive definite everywhere.
-Eigen::VectorXd true_plastic_field(const Bar& bar) {
+// middle (up to 1.25x), and shears in x-z; symmetric positive definite everywhere. kFlatEnds: the
+// same amplitudes with zero slope along the bar at both ends.
+enum class TruthShape { kLinear, kFlatEnds };
+
+Eigen::VectorXd true_plastic_field(const Bar& bar, TruthShape shape = TruthShape::kLinear) {
   const Eigen::Index m = bar.mesh.tets.rows();
   Eigen::VectorXd s(6 * m);
   for (Eigen::Index t = 0; t < m; ++t) {
@@ -90,9 +93,11 @@ Eigen::VectorXd true_plastic_field(const Bar& bar) {
       centroid += bar.mesh.rest_positions.row(bar.mesh.tets(t, a)).transpose() / 4;
     const double u = centroid.x() / bar.length;
     Eigen::Matrix3d Fp = Eigen::Matrix3d::Identity();
-    Fp(0, 0) += 0.3 * u;
-    Fp(1, 1) += 0.25 * std::sin(EIGEN_PI * u);
-    Fp(0, 2) = Fp(2, 0) = 0.08 * u;
+    const bool flat = shape == TruthShape::kFlatEnds;
+    const double g = flat ? 0.5 * (1.0 - std::cos(EIGEN_PI * u)) : u;
+    Fp(0, 0) += 0.3 * g;
+    Fp(1, 1) += flat ? 0.125 * (1.0 - std::cos(2.0 * EIGEN_PI * u)) : 0.25 * std::sin(EIGEN_PI * u);
+    Fp(0, 2) = Fp(2, 0) = 0.08 * g;
     s.segment<6>(6 * t) = plastic_strain_vector(Fp);
   }
   return s;
@@ -120,14 +125,14 @@ struct Truth {
   std::vector<int> candidates;
 };
 
-Truth make_truth(const Bar& bar, unsigned seed) {
+Truth make_truth(const Bar& bar, unsigned seed, TruthShape shape = TruthShape::kLinear) {
   Truth truth;
   auto springs =
       PointConstraints::create(bar.mesh.rest_positions.rows(), bar.mesh.tets, bar.attachments);
   EXPECT_TRUE(springs.has_value());
   auto equilibrium = EquilibriumSolver::create(*bar.energy, *springs);
   EXPECT_TRUE(equilibrium.has_value());
-  truth.s = true_plastic_field(bar);
+  truth.s = true_plastic_field(bar, shape);
   truth.x = bar.energy->rest_dofs();
   EXPECT_TRUE(equilibrium->solve(truth.s, truth.x).converged());
   truth.surface = surface_vertices(bar.mesh);
@@ -200,15 +205,26 @@ struct IcpGroundTruth {
   double vertex_error = 0.0;   // max over surface vertices of |x − x_true|, fraction of diagonal
   double surface_error = 0.0;  // point to surface, max of both directions, fraction of diagonal
   double surface_mean = 0.0;   // point to surface, mean of both directions, fraction of diagonal
-  double correlation = 0.0;    // of the Fp − I entries, recovered vs true
-  double marker_error = 0.0;   // max, fraction of diagonal
+  // surface_error as a fraction of the truth's own (deformed) bounding-box diagonal
+  double surface_error_of_truth = 0.0;
+  double correlation = 0.0;                        // of the Fp − I entries, recovered vs true
+  double marker_error = 0.0;                       // max, fraction of diagonal
   double smoothness = 0.0, true_smoothness = 0.0;  // ½‖L s‖² of the result and of the truth
 };
 
-IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options) {
-  Bar bar = make_bar(16, 4, 0.0125);
+// cubes: the bar's cubes along it (cubes / 4 across, same 0.2 x 0.05 x 0.05 m); seed: the draw of
+// markers.
+struct IcpGroundTruthCase {
+  int cubes = 16;
+  unsigned seed = 11;
+  TruthShape shape = TruthShape::kLinear;
+};
+
+IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options,
+                                         const IcpGroundTruthCase& setup = {}) {
+  Bar bar = make_bar(setup.cubes, setup.cubes / 4, 0.2 / setup.cubes);
   EXPECT_TRUE(bar.energy.has_value());
-  const Truth truth = make_truth(bar, 11);
+  const Truth truth = make_truth(bar, setup.seed, setup.shape);
   const std::size_t count = (truth.surface.size() * 5) / 100;
   RegistrationConstraints constraints;
   constraints.attachments = bar.attachments;
@@ -249,6 +265,11 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options) {
   const PlasticStrainLaplacian laplacian = make_plastic_strain_laplacian(bar.mesh.tets);
   m.smoothness = 0.5 * (laplacian.matrix * result.s).squaredNorm();
   m.true_smoothness = 0.5 * (laplacian.matrix * truth.s).squaredNorm();
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> deformed(
+      truth.x.data(), truth.x.size() / 3, 3);
+  const double truth_diagonal =
+      (deformed.colwise().maxCoeff() - deformed.colwise().minCoeff()).norm();
+  m.surface_error_of_truth = m.surface_error / truth_diagonal;
   m.marker_error = result.summary.marker_error_max / diagonal;
   m.vertex_error /= diagonal;
   m.surface_error /= diagonal;
@@ -256,7 +277,9 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options) {
   std::cout << "ICP ground truth: vertex error max " << 100 * m.vertex_error
             << "% of the diagonal; point to surface max " << 100 * m.surface_error << "%, mean "
             << 100 * m.surface_mean << "%; plastic field correlation " << m.correlation
-            << "; 0.5|Ls|^2 " << m.smoothness << " (truth " << m.true_smoothness << ")\n";
+            << "; 0.5|Ls|^2 " << m.smoothness << " (truth " << m.true_smoothness << ")\n"
+            << "point to surface max " << 100 * m.surface_error_of_truth
+            << "% of the truth's diagonal (" << truth_diagonal << " m)\n";
   return m;
 }
 
@@ -267,16 +290,34 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options) {
 // rougher than the truth (0.040). With 10 point-to-plane iterations first
 // (PointToPlaneIterationsLetIcpMarkersSlide) it reaches a field 40x smoother than the truth
 // (0.0011) through the same markers, 3.0% off at the vertices and point to surface (0.22% mean,
-// correlation 0.97): 14 unlabelled points do not pin this truth down. With known correspondences
-// (landmarks at the same 14 vertices) it is 0.61%; on a 12,288-tet bar (5%: 57 markers) point to
-// plane gives 1.0% point to surface (3.4% at the vertices).
+// correlation 0.97; point to surface 2.5% of the truth's own diagonal, which the test checks): 14
+// unlabelled points do not pin this truth down. With known correspondences (landmarks at the same
+// 14 vertices) it is 0.61%; on a 12,288-tet bar (5%: 57 markers) point to plane gives 1.0% point to
+// surface (3.4% at the vertices). There, which 57 markers are drawn decides it: 0.22% to 4.9% of
+// the truth's diagonal over four random draws, each large error a part of the free end no marker
+// pins (docs/registration.md, "Which markers are drawn decides it").
 TEST(GaussNewton, DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers) {
   GaussNewtonOptions options;
   options.icp_point_to_plane_iterations = 10;
   const IcpGroundTruth m = register_icp_ground_truth(options);
   EXPECT_LT(m.marker_error, 1e-3);
-  EXPECT_LT(m.surface_error, 0.005);
+  EXPECT_LT(m.surface_error_of_truth, 0.005);
   EXPECT_GT(m.correlation, 0.8);
+}
+
+// The draws behind docs/registration.md's "Which markers are drawn decides it" (12,288 tets, about
+// 1.5 min each: run on demand with --gtest_also_run_disabled_tests --gtest_filter='*MarkerDraws*').
+// Measured: seeds 3, 11, 5, 7 give 0.22%, 0.54%, 2.4%, 4.9% of the truth's diagonal.
+TEST(GaussNewton, DISABLED_PrintIcpGroundTruthMarkerDraws) {
+  GaussNewtonOptions options;
+  options.icp_point_to_plane_iterations = 10;
+  for (unsigned seed : {3u, 11u, 5u, 7u}) {
+    const IcpGroundTruth m = register_icp_ground_truth(options, {32, seed, TruthShape::kFlatEnds});
+    std::cout << "seed " << seed << ": point to surface max " << 100 * m.surface_error_of_truth
+              << "% of the truth's diagonal, mean " << 100 * m.surface_mean
+              << "% of the rest diagonal, correlation " << m.correlation << "\n";
+    EXPECT_LT(m.marker_error, 1e-3) << "seed " << seed;
+  }
 }
 
 // GaussNewtonOptions::icp_point_to_plane_iterations on the acceptance case above: the markers,
