@@ -302,8 +302,9 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options,
 // unlabelled points do not pin this truth down. With known correspondences (landmarks at the same
 // 14 vertices) it is 0.61%; on a 12,288-tet bar (5%: 57 markers) point to plane gives 1.0% point to
 // surface (3.4% at the vertices). There, which 57 markers are drawn decides it: 0.22% to 4.9% of
-// the truth's diagonal over four random draws, each large error a part of the free end no marker
-// pins (docs/registration.md, "Which markers are drawn decides it").
+// the truth's diagonal over four random draws, the large errors at the free end, one of them a
+// local minimum and one a minimum that is itself off (PrintIcpGroundTruthMarkerDraws below;
+// docs/registration.md, "Which markers are drawn decides it").
 TEST(GaussNewton, DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers) {
   GaussNewtonOptions options;
   options.icp_point_to_plane_iterations = 10;
