@@ -60,6 +60,10 @@ class Reader {
     if (!j.is_number_integer()) fail(field, "is not an integer");
     return j.get<long>();
   }
+  bool boolean(const nlohmann::json& j, const std::string& field) const {
+    if (!j.is_boolean()) fail(field, "is not a boolean");
+    return j.get<bool>();
+  }
   std::string string(const nlohmann::json& j, const std::string& field) const {
     if (!j.is_string()) fail(field, "is not a string");
     return j.get<std::string>();
@@ -130,9 +134,7 @@ GaussNewtonIteration read_iteration(const Reader& r, const nlohmann::json& j,
       static_cast<int>(r.integer(r.at(j, "clamped_tets", where), where + "clamped_tets"));
   // Absent in checkpoints written before the projected-search fallback existed.
   if (j.contains("projected_search")) {
-    const nlohmann::json& p = j.at("projected_search");
-    if (!p.is_boolean()) r.fail(where + "projected_search", "is not a boolean");
-    it.projected_search = p.get<bool>();
+    it.projected_search = r.boolean(j.at("projected_search"), where + "projected_search");
   }
   it.jacobian_seconds = real("jacobian_seconds");
   it.woodbury_seconds = real("woodbury_seconds");
@@ -261,9 +263,7 @@ RegisterCheckpoint read_checkpoint(const fs::path& path) {
   if (state.is_null()) return c;
   offline::GaussNewtonCheckpoint s;
   const std::string w = "state.";
-  const nlohmann::json& free_object = r.at(state, "free_object", w);
-  if (!free_object.is_boolean()) r.fail(w + "free_object", "is not a boolean");
-  s.free_object = free_object.get<bool>();
+  s.free_object = r.boolean(r.at(state, "free_object", w), w + "free_object");
   const nlohmann::json& next_stage = r.at(state, "next_stage", w);
   if (!next_stage.is_null()) s.next_stage = r.stage(next_stage, w + "next_stage");
   s.next_iteration =
