@@ -198,10 +198,11 @@ TEST(GaussNewton, RecoversAKnownPlasticFieldFromSparseLandmarks) {
   EXPECT_GT(correlation, 0.95);
 }
 
-// Fig. 21 with ICP markers (the acceptance case): 5% of the surface vertices of a finer bar
-// (16x4x4 cubes, 1,536 tets) are given as unlabelled points; their correspondence is the closest
-// point on the deformed surface, recomputed every iteration.
-struct IcpGroundTruth {
+// Fig. 21 style ground truth on a finer bar (by default 16x4x4 cubes, 1,536 tets): a few percent of
+// its surface vertices are given as unlabelled ICP markers (the acceptance case), whose
+// correspondence is the closest point on the deformed surface, recomputed every iteration, or as
+// landmarks with their correspondence (as the paper ran its Fig. 21).
+struct GroundTruthFit {
   double vertex_error = 0.0;   // max over surface vertices of |x − x_true|, fraction of diagonal
   double surface_error = 0.0;  // point to surface, max of both directions, fraction of diagonal
   double surface_mean = 0.0;   // point to surface, mean of both directions, fraction of diagonal
@@ -215,23 +216,36 @@ struct IcpGroundTruth {
 // cubes: the bar's cubes along it (cubes / 4 across, same 0.2 x 0.05 x 0.05 m); seed: the draw of
 // markers; start_from_truth: the ICP stage starts from (s, x) of the truth instead of the
 // template (a checkpoint), to tell a local minimum from a minimum that is itself off.
-struct IcpGroundTruthCase {
+// landmarks: the same vertices given with their correspondence (landmarks, as the paper's Fig. 21
+// ran it) instead of as ICP markers.
+struct GroundTruthCase {
   int cubes = 16;
   unsigned seed = 11;
   TruthShape shape = TruthShape::kLinear;
   bool start_from_truth = false;
+  bool landmarks = false;
+  int percent = 5;  // of the surface vertices given as markers
 };
 
-IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options,
-                                         const IcpGroundTruthCase& setup = {}) {
+GroundTruthFit register_ground_truth(const GaussNewtonOptions& options,
+                                     const GroundTruthCase& setup = {}) {
   Bar bar = make_bar(setup.cubes, setup.cubes / 4, 0.2 / setup.cubes);
   EXPECT_TRUE(bar.energy.has_value());
   const Truth truth = make_truth(bar, setup.seed, setup.shape);
-  const std::size_t count = (truth.surface.size() * 5) / 100;
+  const std::size_t count = (truth.surface.size() * setup.percent) / 100;
   RegistrationConstraints constraints;
   constraints.attachments = bar.attachments;
   for (std::size_t i = 0; i < count; ++i) {
-    constraints.icp_markers.push_back(truth.x.segment<3>(3 * truth.candidates[i]));
+    const int v = truth.candidates[i];
+    if (!setup.landmarks) {
+      constraints.icp_markers.push_back(truth.x.segment<3>(3 * v));
+      continue;
+    }
+    PointConstraint c;
+    c.kind = ConstraintKind::kLandmark;
+    c.point = at_vertex(bar.mesh.tets, v);
+    c.target = truth.x.segment<3>(3 * v);
+    constraints.landmarks.push_back(c);
   }
   auto query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
   EXPECT_TRUE(query.has_value());
@@ -244,14 +258,15 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options,
       register_attached(*bar.energy, constraints, &closest, options, {}, {},
                         setup.start_from_truth ? &truth_start : nullptr);
   EXPECT_TRUE(result.summary.usable()) << result.summary.full_report();
-  std::cout << count << " ICP markers of " << truth.surface.size() << " surface vertices, "
+  std::cout << count << (setup.landmarks ? " landmarks of " : " ICP markers of ")
+            << truth.surface.size() << " surface vertices, "
             << options.icp_point_to_plane_iterations << " point-to-plane iterations\n"
             << result.summary.full_report();
 
   const double diagonal =
       (bar.mesh.rest_positions.colwise().maxCoeff() - bar.mesh.rest_positions.colwise().minCoeff())
           .norm();
-  IcpGroundTruth m;
+  GroundTruthFit m;
   for (int v : truth.surface) {
     m.vertex_error = std::max(m.vertex_error, (result.x - truth.x).segment<3>(3 * v).norm());
   }
@@ -282,10 +297,11 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options,
   m.vertex_error /= diagonal;
   m.surface_error /= diagonal;
   m.surface_mean /= diagonal;
-  std::cout << "ICP ground truth: vertex error max " << 100 * m.vertex_error
-            << "% of the diagonal; point to surface max " << 100 * m.surface_error << "%, mean "
-            << 100 * m.surface_mean << "%; plastic field correlation " << m.correlation
-            << "; 0.5|Ls|^2 " << m.smoothness << " (truth " << m.true_smoothness << ")\n"
+  std::cout << (setup.landmarks ? "Landmark" : "ICP") << " ground truth: vertex error max "
+            << 100 * m.vertex_error << "% of the diagonal; point to surface max "
+            << 100 * m.surface_error << "%, mean " << 100 * m.surface_mean
+            << "%; plastic field correlation " << m.correlation << "; 0.5|Ls|^2 " << m.smoothness
+            << " (truth " << m.true_smoothness << ")\n"
             << "point to surface max " << 100 * m.surface_error_of_truth
             << "% of the truth's diagonal (" << truth_diagonal << " m)\n";
   return m;
@@ -304,11 +320,12 @@ IcpGroundTruth register_icp_ground_truth(const GaussNewtonOptions& options,
 // surface (3.4% at the vertices). There, which 57 markers are drawn decides it: 0.22% to 4.9% of
 // the truth's diagonal over four random draws, the large errors at the free end, one of them a
 // local minimum and one a minimum that is itself off (PrintIcpGroundTruthMarkerDraws below;
-// docs/registration.md, "Which markers are drawn decides it").
+// docs/registration.md, "Which markers are drawn decides it"). The same four draws as landmarks
+// are all within 0.15-0.30% (LandmarkGroundTruth below).
 TEST(GaussNewton, DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers) {
   GaussNewtonOptions options;
   options.icp_point_to_plane_iterations = 10;
-  const IcpGroundTruth m = register_icp_ground_truth(options);
+  const GroundTruthFit m = register_ground_truth(options);
   EXPECT_LT(m.marker_error, 1e-3);
   EXPECT_LT(m.surface_error_of_truth, 0.005);
   EXPECT_GT(m.correlation, 0.8);
@@ -323,8 +340,8 @@ TEST(GaussNewton, DISABLED_PrintIcpGroundTruthMarkerDraws) {
   GaussNewtonOptions options;
   options.icp_point_to_plane_iterations = 10;
   const auto run = [&](unsigned seed, bool from_truth) {
-    const IcpGroundTruth m =
-        register_icp_ground_truth(options, {32, seed, TruthShape::kFlatEnds, from_truth});
+    const GroundTruthFit m =
+        register_ground_truth(options, {32, seed, TruthShape::kFlatEnds, from_truth});
     std::cout << "seed " << seed << (from_truth ? ", from the truth" : ", from the template")
               << ": point to surface max " << 100 * m.surface_error_of_truth
               << "% of the truth's diagonal, mean " << 100 * m.surface_mean
@@ -336,16 +353,44 @@ TEST(GaussNewton, DISABLED_PrintIcpGroundTruthMarkerDraws) {
   for (unsigned seed : {5u, 7u}) run(seed, true);
 }
 
+// Fig. 21 as the paper ran it ("we then selected 488 sparse triangle mesh vertices as landmarks"):
+// 5% of the surface vertices of the 12,288-tet bar (57) as landmarks, flat-ends truth. Every draw
+// tried is asserted, not a chosen one. Measured for seeds 3, 11, 5, 7: point to surface 0.17%,
+// 0.15%, 0.30%, 0.25% of the truth's diagonal; at the vertices 0.28%, 0.18%, 0.36%, 0.29% of the
+// rest diagonal; correlation 0.9974 to 0.9983; about 50 s each. For the record, not asserted:
+// the linear truth gives 0.23%, 0.19%, 0.55%, 0.26%, and 3% landmarks (34) on the flat-ends truth
+// 0.51%, 0.20%, 0.35%, 0.33%. What the landmarks carry that ICP markers do not is the position
+// along the surface: see DISABLED_RecoversAKnownPlasticFieldFromIcpMarkers above.
+class LandmarkGroundTruth : public ::testing::TestWithParam<unsigned> {};
+
+TEST_P(LandmarkGroundTruth, FivePercentLandmarksRecoverTheSurfaceWithinHalfAPercent) {
+  GroundTruthCase setup;
+  setup.cubes = 32;
+  setup.seed = GetParam();
+  setup.shape = TruthShape::kFlatEnds;
+  setup.landmarks = true;
+  const GroundTruthFit m = register_ground_truth(GaussNewtonOptions{}, setup);
+  EXPECT_LT(m.marker_error, 1e-4);
+  EXPECT_LT(m.surface_error_of_truth, 0.005);
+  EXPECT_LT(m.vertex_error, 0.005);  // with correspondence, at the vertices too
+  EXPECT_GT(m.correlation, 0.99);
+}
+
+INSTANTIATE_TEST_SUITE_P(GaussNewton, LandmarkGroundTruth, ::testing::Values(3u, 11u, 5u, 7u),
+                         [](const ::testing::TestParamInfo<unsigned>& draw) {
+                           return "Seed" + std::to_string(draw.param);
+                         });
+
 // GaussNewtonOptions::icp_point_to_plane_iterations on the acceptance case above: the markers,
 // counted point to plane first, let the surface slide under them to a smoother field, and the
 // point-to-point iterations after it meet them again. Against the paper's plain ICP stage
 // (measured: vertex error 6.7% → 3.0% of the diagonal, point to surface 5.8% → 3.0%, correlation
 // 0.73 → 0.97, ½‖Ls‖² 0.060 → 0.0011).
 TEST(GaussNewton, PointToPlaneIterationsLetIcpMarkersSlide) {
-  const IcpGroundTruth plain = register_icp_ground_truth(GaussNewtonOptions{});
+  const GroundTruthFit plain = register_ground_truth(GaussNewtonOptions{});
   GaussNewtonOptions options;
   options.icp_point_to_plane_iterations = 10;
-  const IcpGroundTruth sliding = register_icp_ground_truth(options);
+  const GroundTruthFit sliding = register_ground_truth(options);
   EXPECT_LT(plain.marker_error, 1e-5);
   EXPECT_LT(sliding.marker_error, 1e-5);  // met again by the point-to-point iterations
   EXPECT_LT(sliding.smoothness, 0.1 * plain.smoothness);
