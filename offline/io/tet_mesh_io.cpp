@@ -967,17 +967,29 @@ bool write_vtu(const std::string& path, const TetMesh& mesh, const TetScalarFiel
 
 bool write_vtu_cell_fields(const std::string& path, const TetMesh& mesh,
                            const TetCellFields& cell_fields, std::string* error) {
+  return write_vtu_fields(path, mesh, cell_fields, {}, error);
+}
+
+bool write_vtu_fields(const std::string& path, const TetMesh& mesh,
+                      const TetCellFields& cell_fields, const TetCellFields& point_fields,
+                      std::string* error) {
   try {
     if (!check_mesh_for_write(path, mesh, error)) return false;
-    for (const TetCellField& field : cell_fields) {
-      if (field.values.rows() != mesh.tets.rows())
-        return fail_write(error, path + ": cannot write: field '" + field.name + "' has " +
-                                     std::to_string(field.values.rows()) + " values for " +
-                                     std::to_string(mesh.tets.rows()) + " tets");
-      if (field.values.cols() < 1)
-        return fail_write(error,
-                          path + ": cannot write: field '" + field.name + "' has no components");
-    }
+    const auto check = [&](const TetCellFields& fields, Eigen::Index rows, const char* per) {
+      for (const TetCellField& field : fields) {
+        if (field.values.rows() != rows)
+          return fail_write(error, path + ": cannot write: field '" + field.name + "' has " +
+                                       std::to_string(field.values.rows()) + " values for " +
+                                       std::to_string(rows) + " " + per);
+        if (field.values.cols() < 1)
+          return fail_write(error,
+                            path + ": cannot write: field '" + field.name + "' has no components");
+      }
+      return true;
+    };
+    if (!check(cell_fields, mesh.tets.rows(), "tets") ||
+        !check(point_fields, mesh.vertices.rows(), "vertices"))
+      return false;
     std::ostringstream out;
     out.imbue(std::locale::classic());
     out.precision(std::numeric_limits<double>::max_digits10);
@@ -1010,31 +1022,35 @@ bool write_vtu_cell_fields(const std::string& path, const TetMesh& mesh,
       out << (t % 16 == 0 ? "          " : " ") << 10 << (t % 16 == 15 || t + 1 == nt ? "\n" : "");
     out << "        </DataArray>\n"
         << "      </Cells>\n";
-    if (!cell_fields.empty()) {
-      // The Scalars attribute names the active scalar field; name the first one-component field.
+    // One <PointData> or <CellData> section; its Scalars attribute names the active scalar field
+    // (the first one-component field).
+    const auto section = [&out](const char* tag, const TetCellFields& fields) {
+      if (fields.empty()) return;
       std::string active;
-      for (const TetCellField& field : cell_fields) {
+      for (const TetCellField& field : fields) {
         if (field.values.cols() == 1) {
           active = field.name;
           break;
         }
       }
-      out << "      <CellData";
+      out << "      <" << tag;
       if (!active.empty()) out << " Scalars=\"" << xml_escape(active) << "\"";
       out << ">\n";
-      for (const TetCellField& field : cell_fields) {
+      for (const TetCellField& field : fields) {
         out << "        <DataArray type=\"Float64\" Name=\"" << xml_escape(field.name) << "\"";
         if (field.values.cols() > 1) out << " NumberOfComponents=\"" << field.values.cols() << "\"";
         out << " format=\"ascii\">\n";
-        for (Eigen::Index t = 0; t < nt; ++t) {
-          out << "          " << field.values(t, 0);
-          for (Eigen::Index c = 1; c < field.values.cols(); ++c) out << " " << field.values(t, c);
+        for (Eigen::Index r = 0; r < field.values.rows(); ++r) {
+          out << "          " << field.values(r, 0);
+          for (Eigen::Index c = 1; c < field.values.cols(); ++c) out << " " << field.values(r, c);
           out << "\n";
         }
         out << "        </DataArray>\n";
       }
-      out << "      </CellData>\n";
-    }
+      out << "      </" << tag << ">\n";
+    };
+    section("PointData", point_fields);  // VTK's order: PointData before CellData
+    section("CellData", cell_fields);
     out << "    </Piece>\n"
         << "  </UnstructuredGrid>\n"
         << "</VTKFile>\n";

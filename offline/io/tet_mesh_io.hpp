@@ -81,4 +81,10 @@ bool write_vtu(const std::string& path, const TetMesh& mesh,
 bool write_vtu_cell_fields(const std::string& path, const TetMesh& mesh,
                            const TetCellFields& cell_fields, std::string* error = nullptr);
 
+/// write_vtu_cell_fields plus per-vertex fields (PointData, #V rows each; the same struct, read
+/// "vertex" for "tet"), for ParaView's per-vertex colouring. Atomic like write_vtu.
+bool write_vtu_fields(const std::string& path, const TetMesh& mesh,
+                      const TetCellFields& cell_fields, const TetCellFields& point_fields,
+                      std::string* error = nullptr);
+
 }  // namespace sinew::offline

@@ -236,6 +236,39 @@ TEST(TetMeshIo, VtuWritesMultiComponentCellFields) {
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.vtu"));
 }
 
+TEST(TetMeshIo, VtuWritesPointFieldsBeforeCellFieldsAndReadsBack) {
+  const auto dir = scratch_dir("tet_mesh_io_vtu_points");
+  const TetMesh box = box_mesh();
+  const Eigen::Index nv = box.vertices.rows();
+  const Eigen::VectorXd height = box.vertices.col(2);
+  const Eigen::VectorXd id = Eigen::VectorXd::LinSpaced(box.tets.rows(), 0, 47);
+  std::string error;
+  ASSERT_TRUE(sinew::offline::write_vtu_fields((dir / "points.vtu").string(), box, {{"id", id}},
+                                               {{"position", box.vertices}, {"height", height}},
+                                               &error))
+      << error;
+  const std::string text = sinew::testing::read_text(dir / "points.vtu");
+  const auto point_data = text.find("<PointData Scalars=\"height\">");
+  ASSERT_NE(point_data, std::string::npos);
+  EXPECT_LT(point_data, text.find("<CellData Scalars=\"id\">"));
+  EXPECT_NE(text.find("Name=\"position\" NumberOfComponents=\"3\""), std::string::npos);
+  // The height block holds one number per vertex, in vertex order.
+  const auto begin = text.find('>', text.find("Name=\"height\""));
+  std::istringstream values(text.substr(begin + 1, text.find("</DataArray>", begin) - begin - 1));
+  std::vector<double> read;
+  for (double v; values >> v;) read.push_back(v);
+  ASSERT_EQ(static_cast<Eigen::Index>(read.size()), nv);
+  for (Eigen::Index v = 0; v < nv; ++v) EXPECT_EQ(read[v], height[v]) << v;
+  expect_same_mesh(read_tet_mesh((dir / "points.vtu").string()), box);
+  // A point field with one value per tet is refused and nothing is written.
+  EXPECT_FALSE(sinew::offline::write_vtu_fields((dir / "bad.vtu").string(), box, {},
+                                                {{"height", id}}, &error));
+  EXPECT_NE(error.find("field 'height' has 48 values for " + std::to_string(nv) + " vertices"),
+            std::string::npos)
+      << error;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.vtu"));
+}
+
 TEST(TetMeshIo, VtuRoundTripKeepsMeshAndFullPrecision) {
   const auto dir = scratch_dir("tet_mesh_io_vtu_read");
   TetMesh box = box_mesh();

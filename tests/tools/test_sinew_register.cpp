@@ -167,7 +167,13 @@ TEST(SinewRegister, StretchedBoxFromIcpMarkersInMillimetresAndMetres) {
     EXPECT_NE(vtu.find("Name=\"Fp\" NumberOfComponents=\"9\""), std::string::npos);
     EXPECT_NE(vtu.find("Name=\"principal_stretches\" NumberOfComponents=\"3\""), std::string::npos);
     EXPECT_NE(vtu.find("</VTKFile>"), std::string::npos);
+    EXPECT_NE(vtu.find("<PointData Scalars=\"distance_to_nearest_marker\">"), std::string::npos);
     ASSERT_TRUE(o.report.is_object());
+    // 80 markers spread over the four sides and the far end: no part of the surface is far from
+    // all of them.
+    EXPECT_LT(o.report["coverage"]["uncovered_area_fraction"].get<double>(), 0.02);
+    EXPECT_LT(o.report["coverage"]["weakly_pinned_area_fraction"].get<double>(), 0.05);
+    EXPECT_NE(vtu.find("Name=\"marker_pinning\""), std::string::npos);
     EXPECT_EQ(o.report["length_unit"], units);
     EXPECT_GT(o.report["iterations"].size(), 0u);
     EXPECT_GT(o.report["inputs"]["tets"].get<int>(), 0);
@@ -226,6 +232,36 @@ TEST(SinewRegister, StretchedBoxFromIcpMarkersInMillimetresAndMetres) {
         difference, (runs[0].surface.vertices[i] - 1000.0 * runs[1].surface.vertices[i]).norm());
   std::cout << "mm vs m: largest vertex difference " << difference << " mm\n";
   EXPECT_LT(difference, 1e-3 * std::sqrt(18.0) * 10.0);
+}
+
+// The same box with markers on its attached half only (x < 2 units): its free half is shaped by
+// the smoothness term alone, and the coverage report says so and where.
+TEST(SinewRegister, CoverageReportsTheHalfWithoutMarkers) {
+  const double unit = 10.0;
+  const auto dir = scratch_dir("sinew_register_coverage");
+  StretchCase c = stretch_case(unit, "mm");
+  nlohmann::json near_half = nlohmann::json::array();
+  for (const auto& m : c.json["icp_markers"])
+    if (m[0].get<double>() < 2 * unit) near_half.push_back(m);
+  ASSERT_GE(near_half.size(), 20u);
+  c.json["icp_markers"] = near_half;
+  ASSERT_TRUE(sinew::offline::io::write_obj((dir / "box.obj").string(), c.surface));
+  write_text(dir / "case.json", c.json.dump(1));
+  const RunOutcome o = run_case(dir);
+  ASSERT_EQ(o.result.exit_status, 0) << o.result.err << o.result.out;
+  const nlohmann::json& coverage = o.report["coverage"];
+  std::cout << near_half.size() << " markers on the attached half; coverage " << coverage.dump()
+            << "\n";
+  // The far half is about half the area; the band within 1.5 spacings of the markers is covered.
+  EXPECT_GT(coverage["uncovered_area_fraction"].get<double>(), 0.15);
+  EXPECT_LT(coverage["uncovered_area_fraction"].get<double>(), 0.6);
+  // The farthest point is on the far end (x ≥ 4 units before the stretch).
+  EXPECT_GT(coverage["farthest_point"][0].get<double>(), 4 * unit);
+  EXPECT_GT(coverage["max_distance_spacings"].get<double>(), 1.5);
+  EXPECT_GT(coverage["weakly_pinned_area_fraction"].get<double>(), 0.15);
+  EXPECT_GT(coverage["weakest_point"][0].get<double>(), 3 * unit);
+  EXPECT_NE(o.result.out.find("The shape there comes from the smoothness term"), std::string::npos)
+      << o.result.out;
 }
 
 // --- bad inputs

@@ -58,6 +58,7 @@
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/io/tet_mesh_io.hpp"
 #include "offline/io/volume_image_io.hpp"
+#include "offline/marker_coverage.hpp"
 #include "offline/meshing/tet_mesher.hpp"
 #include "offline/plastic_elastic_energy.hpp"
 #include "offline/plastic_strain.hpp"
@@ -143,6 +144,21 @@ std::vector<offline::EmbeddedPoint> embed(const offline::TetPointLocator& locato
 Eigen::MatrixXd positions(const Eigen::VectorXd& x) {
   return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(
       x.data(), x.size() / 3, 3);
+}
+
+// Where the data pins the result (offline/marker_coverage.hpp): the final stage's markers (ICP
+// markers, else landmarks) and the attachments' targets, all in the normalised frame.
+offline::MarkerCoverage result_coverage(const offline::RegistrationConstraints& constraints,
+                                        const Eigen::MatrixXd& vertices,
+                                        const Eigen::MatrixXi& triangles) {
+  std::vector<Eigen::Vector3d> pinned;
+  std::size_t markers = constraints.icp_markers.size();
+  if (markers == 0) {
+    for (const offline::PointConstraint& pc : constraints.landmarks) pinned.push_back(pc.target);
+    markers = pinned.size();
+  }
+  for (const offline::PointConstraint& pc : constraints.attachments) pinned.push_back(pc.target);
+  return offline::marker_coverage(vertices, triangles, pinned, constraints.icp_markers, markers);
 }
 
 nlohmann::json mesher_json(const offline::TetMesherSummary& s) {
@@ -738,6 +754,41 @@ int run(const RunRequest& request) {
           100 * farthest / frame.scale);
     }
 
+    // Where the markers hold the surface and where the smoothness term alone shapes it.
+    const offline::MarkerCoverage coverage =
+        result_coverage(constraints, positions(result.x), boundary->triangles());
+    {
+      const double spacings = offline::MarkerCoverageOptions{}.uncovered_spacings;
+      const auto at = [&](Eigen::Index v) {
+        const Eigen::Vector3d p = frame.to_user(positions(result.x).row(v)).row(0).transpose();
+        return nlohmann::json{p.x(), p.y(), p.z()};
+      };
+      report["coverage"] = {
+          {"nominal_spacing", coverage.nominal_spacing * frame.scale},
+          {"uncovered_spacings", spacings},
+          {"max_distance", coverage.max_distance * frame.scale},
+          {"max_distance_spacings", coverage.max_distance / coverage.nominal_spacing},
+          {"farthest_point", at(coverage.farthest_vertex)},
+          {"uncovered_area_fraction", coverage.uncovered_area_fraction},
+          {"pinning_threshold", coverage.pinning_threshold},
+          {"min_pinning", coverage.min_pinning},
+          {"weakest_point", at(coverage.weakest_vertex)},
+          {"weakly_pinned_area_fraction", coverage.weakly_pinned_area_fraction}};
+      const nlohmann::json weakest = report["coverage"]["weakest_point"];
+      log.line(
+          "coverage: {:.1f}% of the surface is farther than {} marker spacings ({:.3g}{}) from "
+          "every marker and attachment, {:.1f}% is held weakly along its normal (ICP markers hold "
+          "the surface only along theirs); the weakest point is at ({:.4g}, {:.4g}, {:.4g}){}",
+          100 * coverage.uncovered_area_fraction, spacings,
+          spacings * coverage.nominal_spacing * frame.scale, u,
+          100 * coverage.weakly_pinned_area_fraction, weakest[0].get<double>(),
+          weakest[1].get<double>(), weakest[2].get<double>(),
+          coverage.weakly_pinned_area_fraction > 0 || coverage.uncovered_area_fraction > 0
+              ? ". The shape there comes from the smoothness term, not from the data: result.vtu's "
+                "marker_pinning and distance_to_nearest_marker show where markers would help"
+              : "");
+    }
+
     // Deformed tet mesh with the plastic field.
     offline::TetMesh mesh;
     mesh.vertices = frame.to_user(positions(result.x));
@@ -771,12 +822,15 @@ int run(const RunRequest& request) {
         "tet quality: smallest dihedral angle {:.1f} deg in the template, {:.1f} deg in the "
         "result ({} inverted tets)",
         before.min_dihedral_degrees, after.min_dihedral_degrees, after.inverted_tets);
-    if (!offline::write_vtu_cell_fields(out.vtu().string(), mesh,
-                                        {{"det_Fp", det},
-                                         {"Fp", Fp},
-                                         {"principal_stretches", stretches},
-                                         {"stretch_ratio", ratio}},
-                                        &error))
+    if (!offline::write_vtu_fields(
+            out.vtu().string(), mesh,
+            {{"det_Fp", det},
+             {"Fp", Fp},
+             {"principal_stretches", stretches},
+             {"stretch_ratio", ratio}},
+            {{"distance_to_nearest_marker", coverage.distance * frame.scale},
+             {"marker_pinning", coverage.pinning / coverage.pinning_threshold}},
+            &error))
       throw std::runtime_error(error);
     written.push_back(out.vtu().string());
 
