@@ -302,27 +302,17 @@ GroundTruthFit register_ground_truth(const GaussNewtonOptions& options,
       (deformed.colwise().maxCoeff() - deformed.colwise().minCoeff()).norm();
   m.surface_error_of_truth = m.surface_error / truth_diagonal;
   {
+    // The truth's vertices with its boundary triangles: interior vertices are left out.
     auto boundary = BoundarySurface::extract(bar.mesh.rest_positions.rows(), bar.mesh.tets);
     EXPECT_TRUE(boundary.has_value());
-    std::vector<int> compact(static_cast<std::size_t>(bar.mesh.rest_positions.rows()), -1);
-    Eigen::MatrixXd on_truth(static_cast<Eigen::Index>(boundary->vertices().size()), 3);
-    for (std::size_t i = 0; i < boundary->vertices().size(); ++i) {
-      const int v = boundary->vertices()[i];
-      compact[static_cast<std::size_t>(v)] = static_cast<int>(i);
-      on_truth.row(static_cast<Eigen::Index>(i)) = truth.x.segment<3>(3 * v).transpose();
-    }
-    Eigen::MatrixXi triangles = boundary->triangles();
-    for (Eigen::Index f = 0; f < triangles.rows(); ++f)
-      for (int k = 0; k < 3; ++k)
-        triangles(f, k) = compact[static_cast<std::size_t>(triangles(f, k))];
     std::vector<Eigen::Vector3d> pinned, sliding;
     for (std::size_t i = 0; i < count; ++i)
       (setup.landmarks ? pinned : sliding).push_back(truth.x.segment<3>(3 * truth.candidates[i]));
     for (const PointConstraint& fixed : bar.attachments) pinned.push_back(fixed.target);
-    const MarkerCoverage coverage = marker_coverage(on_truth, triangles, pinned, sliding, count);
-    const int worst = compact[static_cast<std::size_t>(worst_vertex)];
-    m.worst_error_spacings = coverage.distance[worst] / coverage.nominal_spacing;
-    m.worst_error_pinning = coverage.pinning[worst] / coverage.pinning_threshold;
+    const MarkerCoverage coverage =
+        marker_coverage(deformed, boundary->triangles(), pinned, sliding, count);
+    m.worst_error_spacings = coverage.distance[worst_vertex] / coverage.nominal_spacing;
+    m.worst_error_pinning = coverage.pinning[worst_vertex] / coverage.pinning_threshold;
     m.uncovered = coverage.uncovered_area_fraction;
     m.weakly_pinned = coverage.weakly_pinned_area_fraction;
   }
