@@ -754,45 +754,43 @@ int run(const RunRequest& request) {
           100 * farthest / frame.scale);
     }
 
+    // The deformed tet mesh, in the user's frame (result.vtu below).
+    offline::TetMesh mesh;
+    mesh.vertices = frame.to_user(positions(result.x));
+    mesh.tets = tets;
+
     // Where the markers hold the surface and where the smoothness term alone shapes it.
     const offline::MarkerCoverage coverage =
         result_coverage(constraints, positions(result.x), boundary->triangles());
     {
       const double spacings = offline::MarkerCoverageOptions{}.uncovered_spacings;
-      const auto at = [&](Eigen::Index v) {
-        const Eigen::Vector3d p = frame.to_user(positions(result.x).row(v)).row(0).transpose();
-        return nlohmann::json{p.x(), p.y(), p.z()};
-      };
+      const Eigen::RowVector3d farthest = mesh.vertices.row(coverage.farthest_vertex);
+      const Eigen::RowVector3d weakest = mesh.vertices.row(coverage.weakest_vertex);
       report["coverage"] = {
           {"nominal_spacing", coverage.nominal_spacing * frame.scale},
           {"uncovered_spacings", spacings},
           {"max_distance", coverage.max_distance * frame.scale},
           {"max_distance_spacings", coverage.max_distance / coverage.nominal_spacing},
-          {"farthest_point", at(coverage.farthest_vertex)},
+          {"farthest_point", {farthest.x(), farthest.y(), farthest.z()}},
           {"uncovered_area_fraction", coverage.uncovered_area_fraction},
           {"pinning_threshold", coverage.pinning_threshold},
           {"min_pinning", coverage.min_pinning},
-          {"weakest_point", at(coverage.weakest_vertex)},
+          {"weakest_point", {weakest.x(), weakest.y(), weakest.z()}},
           {"weakly_pinned_area_fraction", coverage.weakly_pinned_area_fraction}};
-      const nlohmann::json weakest = report["coverage"]["weakest_point"];
       log.line(
           "coverage: {:.1f}% of the surface is farther than {} marker spacings ({:.3g}{}) from "
           "every marker and attachment, {:.1f}% is held weakly along its normal (ICP markers hold "
           "the surface only along theirs); the weakest point is at ({:.4g}, {:.4g}, {:.4g}){}",
           100 * coverage.uncovered_area_fraction, spacings,
           spacings * coverage.nominal_spacing * frame.scale, u,
-          100 * coverage.weakly_pinned_area_fraction, weakest[0].get<double>(),
-          weakest[1].get<double>(), weakest[2].get<double>(),
+          100 * coverage.weakly_pinned_area_fraction, weakest.x(), weakest.y(), weakest.z(),
           coverage.weakly_pinned_area_fraction > 0 || coverage.uncovered_area_fraction > 0
               ? ". The shape there comes from the smoothness term, not from the data: result.vtu's "
                 "marker_pinning and distance_to_nearest_marker show where markers would help"
               : "");
     }
 
-    // Deformed tet mesh with the plastic field.
-    offline::TetMesh mesh;
-    mesh.vertices = frame.to_user(positions(result.x));
-    mesh.tets = tets;
+    // Plastic field per tet.
     Eigen::MatrixXd Fp(tets.rows(), 9), stretches(tets.rows(), 3);
     Eigen::VectorXd det(tets.rows()), ratio(tets.rows());
     for (Eigen::Index t = 0; t < tets.rows(); ++t) {
