@@ -99,6 +99,18 @@ int find_candidates(const float* profile, int origin, float shift, const Profile
     } else {
       for (int k = begin; k <= end; ++k) response[k] = sign * (profile[k + 1] - profile[k - 1]);
     }
+  } else if (search.mode == ObservationMode::kDarkRidge) {
+    // Both sides must be brighter than the centre: the darker side bounds the depth, so an edge
+    // (one side as dark as the centre) answers ~0; relative to the brighter side, so the same
+    // whisker answers the same under a bright or a dim part of the backlight.
+    for (int k = begin; k <= end; ++k) {
+      const float left = profile[k - s], right = profile[k + s];
+      const float centre_value = 0.25f * (profile[k - 1] + 2.0f * profile[k] + profile[k + 1]);
+      const float lo = left < right ? left : right, hi = left < right ? right : left;
+      response[k] = hi >= search.min_background
+                        ? 100.0f * (lo - centre_value) / (hi > 1.0f ? hi : 1.0f)
+                        : 0.0f;
+    }
   } else {
     // > 0 at a dark line.
     const float sign = search.mode == ObservationMode::kDarkLine ? 1.0f : -1.0f;

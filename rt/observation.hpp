@@ -5,7 +5,10 @@
 /// finds the strongest local responses with sub-pixel localisation (parabola through 3 samples).
 ///
 /// Modes: kEdge finds intensity steps (each boundary of a thick object); kDarkLine / kBrightLine
-/// find the centre of a thin line (whiskers) with a centre-surround response. kEdgeMap is the
+/// find the centre of a thin line with a centre-surround response in grey levels; kDarkRidge finds
+/// a faint dark ridge (a whisker on a backlight) by its contrast relative to the local background:
+/// (min(left, right) − centre) / max(left, right) in per cent, which a graded backlight does not
+/// change and an edge (one side dark) does not answer. kEdgeMap is the
 /// seed's own observation, for comparisons: the image is a binary edge map of the current frame
 /// (e.g. cv::Canny), and each search takes the edge pixels nearest the model along the normal.
 
@@ -15,7 +18,7 @@
 
 namespace sinew::rt {
 
-enum class ObservationMode { kEdge, kDarkLine, kBrightLine, kEdgeMap };
+enum class ObservationMode { kEdge, kDarkLine, kBrightLine, kEdgeMap, kDarkRidge };
 
 /// For kEdge: which way intensity steps across the object's boundary. kAuto decides on the first
 /// frame (is the object darker or brighter than its surroundings along the initial polyline?);
@@ -23,8 +26,10 @@ enum class ObservationMode { kEdge, kDarkLine, kBrightLine, kEdgeMap };
 enum class EdgePolarity { kAuto, kAny, kDarkObject, kBrightObject };
 
 struct Candidate {
-  float offset = 0.0f;    ///< position along the search normal relative to its centre, pixels
-  float strength = 0.0f;  ///< response (grey levels per pixel for edges, grey levels for lines)
+  float offset = 0.0f;  ///< position along the search normal relative to its centre, pixels
+  /// Response: grey levels per pixel (edges), grey levels (lines), per cent of the local
+  /// background (ridges).
+  float strength = 0.0f;
 };
 
 struct ProfileSearch {
@@ -36,6 +41,9 @@ struct ProfileSearch {
   float min_strength = 8.0f;  ///< weaker responses are ignored
   int line_surround_px = 3;   ///< line modes: distance of the surround samples from the centre
   int band_px = 1;            ///< profile averaged over ±band_px pixels along the tangent
+  /// kDarkRidge: no response where the brighter side is darker than this (grey levels): inside
+  /// the face or another dark object, texture would otherwise read as large relative contrast.
+  float min_background = 0.0f;
 
   /// Profile samples needed beyond ±range_px: the central difference reads ±1 more around each
   /// response and the local-maximum test one response more (edges); lines read ±(surround + 1).

@@ -96,6 +96,12 @@ std::optional<std::string> TrackerOptions::validate() const {
     return field_error("max_candidates", max_candidates, "must be in [1, 16]");
   }
   if (!(min_strength > 0.0)) return field_error("min_strength", min_strength, "must be > 0");
+  if (!(ridge_min_background >= 0.0)) {
+    return field_error("ridge_min_background", ridge_min_background, "must be >= 0");
+  }
+  if (!(dark_region_min_step > 0.0)) {
+    return field_error("dark_region_min_step", dark_region_min_step, "must be > 0");
+  }
   if (line_surround_px < 0 || line_surround_px > 50) {
     return field_error("line_surround_px", line_surround_px, "must be in [0, 50]");
   }
@@ -211,6 +217,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   profile_search_.max_candidates = options_.max_candidates;
   profile_search_.min_strength = static_cast<float>(options_.min_strength);
   profile_search_.band_px = options_.band_px;
+  profile_search_.min_background = static_cast<float>(options_.ridge_min_background);
   profile_search_.line_surround_px =
       options_.line_surround_px > 0
           ? options_.line_surround_px
@@ -225,8 +232,9 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   node_tangents_ = polyline_node_tangents(model_.rest_positions());
   const auto& fixed_mask = model_.fixed_mask();
   const bool start_free = options_.observe_ends && !fixed_mask[0] && !fixed_mask[1];
-  const bool end_free =
-      options_.observe_ends && !fixed_mask[3 * (n - 1)] && !fixed_mask[3 * (n - 1) + 1];
+  const bool end_free = options_.observe_ends &&
+                        options_.observation != ObservationMode::kDarkRidge &&
+                        !fixed_mask[3 * (n - 1)] && !fixed_mask[3 * (n - 1) + 1];
   lines_.resize(static_cast<std::size_t>(elements) * per_element + start_free + end_free);
   std::size_t l = 0;
   double stiffness = 0.0, mean_length = 0.0;
@@ -323,6 +331,17 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
 
 void Tracker::reset_motion() noexcept {
   u_prev2_ = u_prev1_;
+  last_miss_px_ = std::numeric_limits<double>::infinity();
+}
+
+void Tracker::reject_last_frame() noexcept {
+  if (!last_accepted_) return;
+  last_accepted_ = false;
+  // After an accepted frame u_prev1_ = u_ and u_prev2_ holds the frame before.
+  u_ = u_prev2_;
+  u_prev1_ = u_prev2_;
+  previous_lost_ = true;
+  verify_have_previous_ = false;
   last_miss_px_ = std::numeric_limits<double>::infinity();
 }
 
@@ -466,12 +485,18 @@ void Tracker::search(const ImageView& frame, int range_px) {
       ProfileSearch search = base;
       search.mode = ObservationMode::kEdge;
       const bool dark = options_.observation == ObservationMode::kDarkLine ||
+                        options_.observation == ObservationMode::kDarkRidge ||
                         (options_.observation == ObservationMode::kEdge &&
                          polarity_ == EdgePolarity::kDarkObject);
       const bool bright = options_.observation == ObservationMode::kBrightLine ||
                           (options_.observation == ObservationMode::kEdge &&
                            polarity_ == EdgePolarity::kBrightObject);
       search.expected_sign = dark ? 1 : bright ? -1 : 0;
+      if (line.end < 0 && options_.start_end == StartEnd::kDarkRegion) {
+        // The follicle: intensity falls where the face begins, going outwards from the base.
+        search.expected_sign = -1;
+        search.min_strength = static_cast<float>(options_.dark_region_min_step);
+      }
       line.num_candidates = search_profile(frame, line.centre, line.normal, search, scratch_.data(),
                                            &candidates_[l * K]);
       ++l;
@@ -934,6 +959,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction ||
       summary.object_fraction < options_.min_inlier_fraction) {
     summary.status = FrameStatus::kLost;
+    last_accepted_ = false;
     verify_have_previous_ = false;
     // Keep the last good state and forget the velocity: the next frame searches from there.
     if (frames_ >= 1) {
@@ -947,6 +973,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   }
   summary.status = converged ? FrameStatus::kOk : FrameStatus::kNotConverged;
   previous_lost_ = false;
+  last_accepted_ = true;
   if (strong_samples > 0) {
     const double median = detail::kth_smallest(sorted_.data(), strong_samples, strong_samples / 2);
     typical_strength_ = frames_ == 0 ? median : 0.8 * typical_strength_ + 0.2 * median;

@@ -33,6 +33,13 @@ enum class TrackerModel {
   kSnake,  ///< the seed's §5.2 baseline: stretching + bending weights on a polyline
 };
 
+/// What a free first node's end search along the tangent looks for (see observe_ends).
+enum class StartEnd {
+  kObjectEnd,   ///< where the object gives way to background (any free end)
+  kDarkRegion,  ///< where a dark region begins: a whisker's follicle on the face, which may slide
+                ///< along the face's edge and move with it, but not along the whisker into the fur
+};
+
 struct TrackerOptions {
   TrackerModel model = TrackerModel::kBeam;
   ObservationMode observation = ObservationMode::kEdge;
@@ -113,6 +120,17 @@ struct TrackerOptions {
   /// Also search along the tangent for the object's end at each free end (a node with no fixed
   /// translation): without it a free beam can slide along itself, which normals cannot see.
   bool observe_ends = true;
+  /// kDarkRidge: no ridge is seen where the brighter side is darker than this, grey levels, ≥ 0
+  /// (e.g. a third of the backlight, so that fur and dark objects give no observations).
+  double ridge_min_background = 0.0;
+  /// What the first node's end search looks for; kDarkRegion for objects that grow out of a
+  /// dark region (whiskers from the face). In kDarkRidge mode the free last node (a whisker's
+  /// tip, whose contrast fades to nothing) is not observed along the tangent: the beam's axial
+  /// stiffness keeps its length.
+  StartEnd start_end = StartEnd::kObjectEnd;
+  /// kDarkRegion: weakest intensity step accepted as the dark region's edge, grey levels per
+  /// pixel, > 0.
+  double dark_region_min_step = 10.0;
   /// An inlier counts as the object only if its response reaches this fraction of the object's
   /// typical response (running median over good frames), [0, 1); below min_inlier_fraction such
   /// lines the frame is lost (the object left, or is hidden).
@@ -183,6 +201,11 @@ class Tracker {
 
   /// Forgets the motion history: the next frame starts from the last state without velocity.
   void reset_motion() noexcept;
+
+  /// Discards the last frame's fit (a caller found it on another object: a neighbouring whisker,
+  /// a pole): the state returns to the frame before, and the next frame searches as after a lost
+  /// frame. No effect when the last frame was already lost. No allocation.
+  void reject_last_frame() noexcept;
 
   /// State u = [ux, uy, θ] per node relative to the reference (first-frame) polyline.
   const Eigen::VectorXd& state() const { return u_; }
@@ -269,6 +292,7 @@ class Tracker {
   std::vector<float> strength_;          // response of the candidate each line uses
   double typical_strength_ = 0.0;        // running median response of the object's inliers
   bool previous_lost_ = false;
+  bool last_accepted_ = false;  // the last frame's fit was taken (ok or not converged)
   double last_miss_px_ = std::numeric_limits<double>::infinity();  // prediction error, last frame
   double cutoff_ = 0.0;                                            // robust cutoff of the last step
   std::vector<float> sorted_;                                      // scratch for the median

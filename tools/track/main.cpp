@@ -22,6 +22,7 @@
 #include "rt/tracker.hpp"
 #include "tools/io/beam_json.hpp"
 #include "tools/track/frame_source.hpp"
+#include "tools/track/whiskers.hpp"
 
 namespace {
 
@@ -503,8 +504,17 @@ int main(int argc, char** argv) {
   Args args;
   app.add_option("--input", args.input, "video file, image, folder of images or printf pattern")
       ->required();
-  app.add_option("--init", args.init, "init.json: polyline on the first frame, material, ...")
-      ->required();
+  app.add_option("--init", args.init, "init.json: polyline on the first frame, material, ...");
+  bool whiskers = false;
+  std::string face = "auto";
+  double min_length = 40.0;
+  app.add_flag("--whiskers", whiskers,
+               "find every whisker leaving the face on the first frame and track them all "
+               "(no --init)");
+  app.add_option("--face", face, "--whiskers: the border the face touches")
+      ->check(CLI::IsMember({"auto", "left", "right", "top", "bottom"}));
+  app.add_option("--min-length-px", min_length, "--whiskers: shortest whisker reported")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)")->required();
   app.add_option("--overlay", args.overlay, "folder for overlay PNGs, or a .mp4/.avi file");
   app.add_option("--stride", args.stride, "process every K-th frame")->check(CLI::PositiveNumber);
@@ -530,6 +540,21 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   try {
+    if (whiskers) {
+      if (!args.init.empty()) throw tools::InputError("--whiskers finds the whiskers; drop --init");
+      tools::WhiskerTrackArgs w;
+      w.input = args.input;
+      w.out = args.out;
+      w.overlay = args.overlay;
+      w.face = face;
+      w.first = args.first;
+      w.stride = args.stride;
+      w.count = args.count;
+      w.quiet = args.quiet;
+      w.min_length_px = min_length;
+      return tools::run_whiskers(w);
+    }
+    if (args.init.empty()) throw tools::InputError("--init is required (or --whiskers)");
     return run(args);
   } catch (const std::exception& e) {
     std::cerr << "sinew-track: " << e.what() << "\n";

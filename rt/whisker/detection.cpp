@@ -1,0 +1,404 @@
+#include "rt/whisker/detection.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace sinew::rt {
+
+namespace {
+
+std::string field_error(const char* field, double value, const char* constraint) {
+  return std::string("whisker detection: ") + field + " = " + std::to_string(value) + " " +
+         constraint;
+}
+
+// Bilinear read of a float map; false outside.
+bool sample(const cv::Mat& m, double x, double y, float* v) {
+  if (!(x >= 0.0 && y >= 0.0 && x <= m.cols - 1.0 && y <= m.rows - 1.0)) return false;
+  int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  x0 = std::min(x0, m.cols - 2);
+  y0 = std::min(y0, m.rows - 2);
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const float* r0 = m.ptr<float>(y0);
+  const float* r1 = m.ptr<float>(y0 + 1);
+  const float top = r0[x0] + fx * (r0[x0 + 1] - r0[x0]);
+  const float bottom = r1[x0] + fx * (r1[x0 + 1] - r1[x0]);
+  *v = top + fy * (bottom - top);
+  return true;
+}
+
+// The maps detection reads: smoothed image, Hessian normal, ridge contrast, darkness, distance
+// from the face.
+struct Maps {
+  cv::Mat smooth;    // CV_32F, Gaussian(smoothing_px)
+  cv::Mat nx, ny;    // CV_32F unit normal (direction of largest curvature)
+  cv::Mat contrast;  // CV_32F ridge contrast, per cent
+  cv::Mat dark;      // CV_8U, 255 where the heavily smoothed image is dark
+  cv::Mat face;      // CV_8U, 255 on the face
+  cv::Mat distance;  // CV_32F distance from the face, pixels
+};
+
+// Ridge normal at (x, y): direction of the largest eigenvalue of the Hessian there.
+Eigen::Vector2d normal_at(const Maps& m, double x, double y) {
+  float a = 1.0f, b = 0.0f;
+  sample(m.nx, x, y, &a);
+  sample(m.ny, x, y, &b);
+  // The maps hold a direction field (n and −n are the same); bilinear blending of opposite
+  // neighbours is avoided by reading the nearest pixel when the blend is short.
+  Eigen::Vector2d n(a, b);
+  if (n.norm() < 0.5) {
+    const int xi = std::clamp(static_cast<int>(std::lround(x)), 0, m.nx.cols - 1);
+    const int yi = std::clamp(static_cast<int>(std::lround(y)), 0, m.nx.rows - 1);
+    n = Eigen::Vector2d(m.nx.at<float>(yi, xi), m.ny.at<float>(yi, xi));
+  }
+  return n.normalized();
+}
+
+float contrast_at(const Maps& m, const Eigen::Vector2d& p) {
+  float v = 0.0f;
+  return sample(m.contrast, p.x(), p.y(), &v) ? v : 0.0f;
+}
+
+bool is_dark(const Maps& m, const Eigen::Vector2d& p) {
+  const int x = static_cast<int>(std::lround(p.x())), y = static_cast<int>(std::lround(p.y()));
+  if (x < 0 || y < 0 || x >= m.dark.cols || y >= m.dark.rows) return true;
+  return m.dark.at<std::uint8_t>(y, x) != 0;
+}
+
+float face_distance(const Maps& m, const Eigen::Vector2d& p) {
+  float v = 0.0f;
+  return sample(m.distance, p.x(), p.y(), &v) ? v : 0.0f;
+}
+
+Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSide* side,
+                double* backlight) {
+  Maps m;
+  const cv::Mat grey(frame.height, frame.width, CV_8UC1, const_cast<std::uint8_t*>(frame.data),
+                     static_cast<std::size_t>(frame.stride));
+  cv::Mat f;
+  grey.convertTo(f, CV_32F);
+  cv::GaussianBlur(f, m.smooth, cv::Size(), o.smoothing_px);
+  cv::Mat hs, dxx, dyy, dxy;
+  cv::GaussianBlur(f, hs, cv::Size(), o.orientation_scale_px);
+  cv::Sobel(hs, dxx, CV_32F, 2, 0, 3);
+  cv::Sobel(hs, dyy, CV_32F, 0, 2, 3);
+  cv::Sobel(hs, dxy, CV_32F, 1, 1, 3);
+  m.nx.create(f.size(), CV_32F);
+  m.ny.create(f.size(), CV_32F);
+  m.contrast.create(f.size(), CV_32F);
+  const double s = o.surround_px;
+  for (int y = 0; y < f.rows; ++y) {
+    for (int x = 0; x < f.cols; ++x) {
+      // Sobel's second-derivative kernels carry a factor 4 (dxx, dyy) and 4 (dxy) alike.
+      const double a = dxx.at<float>(y, x), c = dyy.at<float>(y, x), b = dxy.at<float>(y, x);
+      const double theta = 0.5 * std::atan2(2.0 * b, a - c);  // largest-curvature direction
+      const double nxv = std::cos(theta), nyv = std::sin(theta);
+      m.nx.at<float>(y, x) = static_cast<float>(nxv);
+      m.ny.at<float>(y, x) = static_cast<float>(nyv);
+      float left, right, centre = m.smooth.at<float>(y, x);
+      float value = 0.0f;
+      if (sample(m.smooth, x - s * nxv, y - s * nyv, &left) &&
+          sample(m.smooth, x + s * nxv, y + s * nyv, &right)) {
+        const float lo = std::min(left, right), hi = std::max(left, right);
+        value = 100.0f * (lo - centre) / std::max(hi, 1.0f);
+      }
+      m.contrast.at<float>(y, x) = value;
+    }
+  }
+
+  // Dark regions: heavily smoothed (whiskers vanish), below a fraction of the backlight.
+  cv::Mat coarse;
+  cv::GaussianBlur(f, coarse, cv::Size(), 4.0);
+  std::vector<float> values(coarse.begin<float>(), coarse.end<float>());
+  std::nth_element(values.begin(), values.begin() + values.size() * 95 / 100, values.end());
+  *backlight = values[values.size() * 95 / 100];
+  cv::compare(coarse, o.dark_fraction * *backlight, m.dark, cv::CMP_LT);
+
+  // The face: the dark components touching the chosen border.
+  cv::Mat labels;
+  const int count = cv::connectedComponents(m.dark, labels, 8, CV_32S);
+  auto border_labels = [&](FaceSide s2, std::vector<int>* hits) {
+    hits->assign(count, 0);
+    const int w = labels.cols, h = labels.rows;
+    const int n = s2 == FaceSide::kLeft || s2 == FaceSide::kRight ? h : w;
+    for (int k = 0; k < n; ++k) {
+      const int x = s2 == FaceSide::kLeft ? 0 : s2 == FaceSide::kRight ? w - 1 : k;
+      const int y = s2 == FaceSide::kTop ? 0 : s2 == FaceSide::kBottom ? h - 1 : k;
+      (*hits)[labels.at<int>(y, x)]++;
+    }
+    (*hits)[0] = 0;  // background
+    int total = 0;
+    for (int i = 1; i < count; ++i) total += (*hits)[i];
+    return static_cast<double>(total) / n;
+  };
+  std::vector<int> hits;
+  if (*side == FaceSide::kAuto) {
+    double best = -1.0;
+    for (FaceSide s2 : {FaceSide::kLeft, FaceSide::kRight, FaceSide::kTop, FaceSide::kBottom}) {
+      const double fraction = border_labels(s2, &hits);
+      if (fraction > best) {
+        best = fraction;
+        *side = s2;
+      }
+    }
+  }
+  border_labels(*side, &hits);
+  m.face = cv::Mat::zeros(f.size(), CV_8U);
+  for (int y = 0; y < labels.rows; ++y) {
+    for (int x = 0; x < labels.cols; ++x) {
+      if (hits[labels.at<int>(y, x)] > 0) m.face.at<std::uint8_t>(y, x) = 255;
+    }
+  }
+  cv::Mat not_face;
+  cv::bitwise_not(m.face, not_face);
+  cv::distanceTransform(not_face, m.distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  return m;
+}
+
+struct Trace {
+  std::vector<Eigen::Vector2d> points;  // in tracing order
+  bool ended_dark = false;              // ran into a dark region (not a free tip)
+};
+
+// Follows a ridge from p along direction t (unit), re-centring each 1 px step on the contrast
+// maximum across the ridge. Stops after max_gap_px steps below follow_contrast (the trace keeps
+// the points up to the last strong one), at the image border, or on entering a dark region (the
+// face, whose first point it keeps).
+Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
+             Eigen::Vector2d t) {
+  Trace trace;
+  trace.points.push_back(p);
+  int gap = 0;
+  std::size_t last_strong = 0;
+  const int max_steps = 4 * (m.contrast.cols + m.contrast.rows);
+  for (int step = 0; step < max_steps; ++step) {
+    Eigen::Vector2d q = p + t;
+    if (q.x() < 1.0 || q.y() < 1.0 || q.x() > m.contrast.cols - 2.0 ||
+        q.y() > m.contrast.rows - 2.0) {
+      break;
+    }
+    if (is_dark(m, q)) {
+      // Entering the face (or another dark object): the first dark point ends the trace.
+      trace.points.push_back(q);
+      last_strong = trace.points.size() - 1;
+      trace.ended_dark = true;
+      break;
+    }
+    Eigen::Vector2d n(-t.y(), t.x());
+    // Re-centre: the contrast maximum across the ridge within ±1.5 px (0.25 px steps).
+    double best = -1e9, best_offset = 0.0;
+    for (int k = -6; k <= 6; ++k) {
+      const double c = contrast_at(m, q + 0.25 * k * n);
+      if (c > best) {
+        best = c;
+        best_offset = 0.25 * k;
+      }
+    }
+    if (best >= o.follow_contrast) {
+      q += best_offset * n;
+      gap = 0;
+    } else if (++gap > o.max_gap_px) {
+      break;
+    }
+    // The new direction: the ridge's own (Hessian) tangent, oriented along the trace, blended
+    // with the chord over the last few points so noise does not turn it.
+    const Eigen::Vector2d nr = normal_at(m, q.x(), q.y());
+    Eigen::Vector2d tr(-nr.y(), nr.x());
+    if (tr.dot(t) < 0.0) tr = -tr;
+    const std::size_t back = std::min<std::size_t>(trace.points.size(), 4);
+    Eigen::Vector2d chord = q - trace.points[trace.points.size() - back];
+    chord = chord.norm() > 1e-9 ? Eigen::Vector2d(chord.normalized()) : t;
+    Eigen::Vector2d t_new = (0.5 * tr + 0.5 * chord);
+    // A turn of more than ~25° in one pixel is not a whisker's (noise or a crossing): keep going.
+    if (t_new.norm() < 1e-9 || t_new.normalized().dot(t) < 0.9) t_new = t;
+    t = t_new.normalized();
+    p = q;
+    trace.points.push_back(p);
+    if (gap == 0) last_strong = trace.points.size() - 1;
+  }
+  trace.points.resize(last_strong + 1);
+  return trace;
+}
+
+float median_contrast(const Maps& m, const std::vector<Eigen::Vector2d>& points) {
+  std::vector<float> contrasts;
+  for (const auto& p : points) contrasts.push_back(contrast_at(m, p));
+  if (contrasts.empty()) return 0.0f;
+  std::nth_element(contrasts.begin(), contrasts.begin() + contrasts.size() / 2, contrasts.end());
+  return contrasts[contrasts.size() / 2];
+}
+
+// Median contrast of the last 10 points of a trace (its far end).
+float end_contrast(const Maps& m, const std::vector<Eigen::Vector2d>& points) {
+  const std::size_t k = std::min<std::size_t>(points.size(), 10);
+  return median_contrast(m, std::vector<Eigen::Vector2d>(points.end() - k, points.end()));
+}
+
+double polyline_length(const std::vector<Eigen::Vector2d>& pts) {
+  double length = 0.0;
+  for (std::size_t i = 1; i < pts.size(); ++i) length += (pts[i] - pts[i - 1]).norm();
+  return length;
+}
+
+}  // namespace
+
+const char* to_string(FaceSide side) {
+  switch (side) {
+    case FaceSide::kAuto:
+      return "auto";
+    case FaceSide::kLeft:
+      return "left";
+    case FaceSide::kRight:
+      return "right";
+    case FaceSide::kTop:
+      return "top";
+    case FaceSide::kBottom:
+      return "bottom";
+  }
+  return "unknown";
+}
+
+std::optional<std::string> WhiskerDetectionOptions::validate() const {
+  if (!(smoothing_px > 0.0)) return field_error("smoothing_px", smoothing_px, "must be > 0");
+  if (!(orientation_scale_px > 0.0)) {
+    return field_error("orientation_scale_px", orientation_scale_px, "must be > 0");
+  }
+  if (surround_px < 1) return field_error("surround_px", surround_px, "must be >= 1");
+  if (!(seed_contrast > 0.0)) return field_error("seed_contrast", seed_contrast, "must be > 0");
+  if (!(follow_contrast > 0.0)) {
+    return field_error("follow_contrast", follow_contrast, "must be > 0");
+  }
+  if (max_gap_px < 0) return field_error("max_gap_px", max_gap_px, "must be >= 0");
+  if (!(min_length_px >= 0.0)) return field_error("min_length_px", min_length_px, "must be >= 0");
+  if (!(dark_fraction > 0.0 && dark_fraction < 1.0)) {
+    return field_error("dark_fraction", dark_fraction, "must be in (0, 1)");
+  }
+  if (!(pad_band_px > 1.0)) return field_error("pad_band_px", pad_band_px, "must be > 1");
+  if (!(min_separation_px > 0.0)) {
+    return field_error("min_separation_px", min_separation_px, "must be > 0");
+  }
+  if (max_whiskers < 1) return field_error("max_whiskers", max_whiskers, "must be >= 1");
+  return std::nullopt;
+}
+
+WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& o) {
+  WhiskerDetection result;
+  if (auto err = o.validate()) {
+    result.error = *err;
+    return result;
+  }
+  if (!frame.valid() || frame.width < 16 || frame.height < 16) {
+    result.error = "whisker detection: the frame is empty or smaller than 16 x 16 pixels";
+    return result;
+  }
+  FaceSide side = o.face;
+  const Maps m = build_maps(frame, o, &side, &result.backlight);
+  result.face = side;
+  if (cv::countNonZero(m.face) == 0) {
+    result.error = std::string("whisker detection: no dark region touches the ") +
+                   to_string(side) + " border (no face); is the face on another side?";
+    return result;
+  }
+
+  // Seeds: ridge centres (contrast maxima across the ridge) outside the dark regions. Not only
+  // near the face: a whisker that leaves the face behind a neighbour shows its own ridge only
+  // farther out, and is traced back to the face from there.
+  struct Seed {
+    Eigen::Vector2d p;
+    float contrast;
+  };
+  std::vector<Seed> seeds;
+  for (int y = 1; y < m.contrast.rows - 1; ++y) {
+    for (int x = 1; x < m.contrast.cols - 1; ++x) {
+      const float d = m.distance.at<float>(y, x);
+      const float c = m.contrast.at<float>(y, x);
+      if (d < 2.0f || c < o.seed_contrast || m.dark.at<std::uint8_t>(y, x)) {
+        continue;
+      }
+      const Eigen::Vector2d p(x, y), n = normal_at(m, x, y);
+      if (contrast_at(m, p + n) > c || contrast_at(m, p - n) > c) continue;
+      seeds.push_back({p, c});
+    }
+  }
+  std::sort(seeds.begin(), seeds.end(),
+            [](const Seed& a, const Seed& b) { return a.contrast > b.contrast; });
+  result.seeds = static_cast<int>(seeds.size());
+
+  // Trace each seed not already on a traced whisker both ways along its ridge; the end nearer the
+  // face is the follicle.
+  cv::Mat claimed = cv::Mat::zeros(m.contrast.size(), CV_8U);
+  auto claim = [&](const std::vector<Eigen::Vector2d>& points) {
+    for (const auto& p : points) {
+      cv::circle(claimed, cv::Point(int(std::lround(p.x())), int(std::lround(p.y()))), 1, 255, -1);
+    }
+  };
+  std::vector<DetectedWhisker> found;
+  for (const Seed& seed : seeds) {
+    const int sx = static_cast<int>(seed.p.x()), sy = static_cast<int>(seed.p.y());
+    if (claimed.at<std::uint8_t>(sy, sx)) continue;
+    const Eigen::Vector2d n = normal_at(m, seed.p.x(), seed.p.y());
+    const Eigen::Vector2d t(-n.y(), n.x());
+    Trace a = follow(m, o, seed.p, t);
+    Trace b = follow(m, o, seed.p, -t);
+    // The follicle is the end at the face; when both ends reach a dark region (a tip over the
+    // cheek's shadow), the darker one: a whisker tapers, its contrast falls towards the tip.
+    const float da = face_distance(m, a.points.back()), db = face_distance(m, b.points.back());
+    if (da <= 2.0f && db <= 2.0f) {
+      if (end_contrast(m, a.points) > end_contrast(m, b.points)) std::swap(a, b);
+    } else if (da < db) {
+      std::swap(a, b);
+    }
+    // b ends at the face, a at the tip.
+    DetectedWhisker w;
+    for (std::size_t i = b.points.size(); i-- > 1;) w.points.push_back(b.points[i]);
+    w.points.insert(w.points.end(), a.points.begin(), a.points.end());
+    claim(w.points);
+    w.follicle = w.points.front();
+    w.length_px = polyline_length(w.points);
+    w.contrast_percent = median_contrast(m, w.points);
+    float farthest = 0.0f;
+    for (const auto& p : w.points) farthest = std::max(farthest, face_distance(m, p));
+    // A whisker starts at the face and leaves it; a thin structure of the apparatus, far darker
+    // than a backlit hair, is not one.
+    const bool starts_at_face = face_distance(m, w.follicle) <= 2.0;
+    const bool leaves = farthest >= o.pad_band_px;
+    const bool rod = w.contrast_percent > o.max_contrast;
+    if (starts_at_face && leaves && !rod && w.length_px >= o.min_length_px) {
+      found.push_back(std::move(w));
+    }
+  }
+
+  // The longest first; a trace running along an accepted one over most of its length is it.
+  std::sort(found.begin(), found.end(), [](const DetectedWhisker& a, const DetectedWhisker& b) {
+    return a.length_px > b.length_px;
+  });
+  cv::Mat taken = cv::Mat::zeros(m.contrast.size(), CV_8U);
+  const int radius = std::max(1, static_cast<int>(std::lround(o.min_separation_px)));
+  for (auto& w : found) {
+    if (static_cast<int>(result.whiskers.size()) >= o.max_whiskers) break;
+    int on = 0;
+    for (const auto& p : w.points) {
+      on += taken.at<std::uint8_t>(int(std::lround(p.y())), int(std::lround(p.x()))) != 0;
+    }
+    if (on > 0.5 * static_cast<double>(w.points.size())) continue;
+    for (std::size_t i = 1; i < w.points.size(); ++i) {
+      cv::line(taken, cv::Point2d(w.points[i - 1].x(), w.points[i - 1].y()),
+               cv::Point2d(w.points[i].x(), w.points[i].y()), 255, 2 * radius - 1);
+    }
+    result.whiskers.push_back(std::move(w));
+  }
+
+  // Identities in order along the face's edge: by the follicle's coordinate along that border.
+  const bool vertical = side == FaceSide::kLeft || side == FaceSide::kRight;
+  std::sort(result.whiskers.begin(), result.whiskers.end(),
+            [&](const DetectedWhisker& a, const DetectedWhisker& b) {
+              const double ka = vertical ? a.follicle.y() : a.follicle.x();
+              const double kb = vertical ? b.follicle.y() : b.follicle.x();
+              return ka < kb;
+            });
+  return result;
+}
+
+}  // namespace sinew::rt

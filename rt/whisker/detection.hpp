@@ -1,0 +1,81 @@
+#pragma once
+/// Finding whiskers with no initialisation: the face (the dark region the whiskers grow from), the
+/// whisker pad along its edge, and every whisker that leaves it, by following its ridge outwards.
+/// Runs once at set-up (and may allocate); the per-frame tracking is rt::WhiskerTracker's.
+///
+/// The ridge measure is the one the tracker observes (ObservationMode::kDarkRidge): the contrast
+/// (min(left, right) − centre) / max(left, right) across the ridge, in per cent of the local
+/// backlight, with the sides 3 px from the centre along the direction of largest curvature of the
+/// Gaussian-smoothed image. A graded backlight does not change it, and an edge (one side dark)
+/// does not answer it, so the face's own outline and a dark pole's sides are not whiskers.
+///
+/// A whisker is accepted when its trace starts within pad_band_px of the face, leaves the face
+/// (its first direction within 70° of the face's outward normal), is at least min_length_px long,
+/// is as faint as a hair (max_contrast: a thin rod of the apparatus is not a whisker), and does
+/// not run along a longer one.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rt/image_view.hpp"
+
+namespace sinew::rt {
+
+/// The image border the face touches; kAuto takes the border with most dark pixels.
+enum class FaceSide { kAuto, kLeft, kRight, kTop, kBottom };
+const char* to_string(FaceSide side);
+
+struct WhiskerDetectionOptions {
+  FaceSide face = FaceSide::kAuto;
+  /// Gaussian smoothing before the ridge contrast is read, pixels, > 0.
+  double smoothing_px = 1.0;
+  /// Scale of the Hessian that gives the ridge direction, pixels, > 0.
+  double orientation_scale_px = 1.5;
+  /// Distance of the side samples from the ridge centre, pixels, ≥ 1.
+  int surround_px = 3;
+  /// A seed's ridge contrast, per cent of the backlight, > 0.
+  double seed_contrast = 3.0;
+  /// A trace is a whisker only if its median contrast is at most this (per cent): a backlit hair
+  /// is faint, a rod of the apparatus is not (shared whisker video, frame 0: whiskers 2–9 %, the
+  /// apparatus' rods 22–25 %).
+  double max_contrast = 20.0;
+  /// Tracing goes on while the contrast (per cent) is at least this, > 0.
+  double follow_contrast = 1.2;
+  /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
+  int max_gap_px = 12;
+  /// Shortest whisker reported, pixels.
+  double min_length_px = 40.0;
+  /// The face and other objects: smoothed intensity below this fraction of the backlight, (0, 1).
+  double dark_fraction = 0.35;
+  /// Seeds lie within this distance of the face's edge, pixels, > 1.
+  double pad_band_px = 10.0;
+  /// A trace whose points lie within this of a longer whisker over most of its length is that
+  /// whisker, pixels, > 0.
+  double min_separation_px = 2.0;
+  /// At most this many whiskers are reported (the longest), ≥ 1.
+  int max_whiskers = 64;
+
+  std::optional<std::string> validate() const;
+};
+
+struct DetectedWhisker {
+  std::vector<Eigen::Vector2d> points;  ///< the ridge centreline, follicle first, ~1 px apart
+  Eigen::Vector2d follicle = Eigen::Vector2d::Zero();  ///< where the trace meets the face
+  double length_px = 0.0;
+  double contrast_percent = 0.0;  ///< median ridge contrast along the trace
+};
+
+struct WhiskerDetection {
+  std::vector<DetectedWhisker> whiskers;  ///< ordered along the face's edge
+  FaceSide face = FaceSide::kAuto;        ///< the side used (resolved when kAuto was asked)
+  double backlight = 0.0;                 ///< the bright level the dark fraction is taken of
+  int seeds = 0;                          ///< ridge points near the face that were traced
+  std::string error;                      ///< empty on success (bad options, no face found)
+};
+
+/// Detects the whiskers of one 8-bit grey frame.
+WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& options);
+
+}  // namespace sinew::rt

@@ -1,0 +1,140 @@
+#!/usr/bin/env python3
+"""Independent check of sinew-track --whiskers results on a video: does each fitted whisker lie on
+a dark ridge of the image, and does any lie on a thick dark object (a pole)?
+
+Written apart from the tracker (numpy + OpenCV, its own ridge test), so the tracker's own
+residuals do not vouch for themselves. For every whisker-frame reported "ok" or "not_converged":
+
+- the fitted curve (its nodes, joined by straight chords) is sampled every pixel, leaving out the
+  first 3 px (the follicle sits on the face's edge, where one side is dark);
+- a sample is on a ridge when, in the frame smoothed with a Gaussian of 1 px, the darkest pixel
+  within 1 px of it along the curve's normal is darker than both sides (4 and 5 px out on each
+  side, averaged) by at least --min-depth grey levels;
+- the whisker-frame is on a ridge when at least --min-fraction of its samples are;
+- it is on a pole when more than a third of its samples lie inside a dark region (the frame
+  smoothed with a Gaussian of 4 px below 0.35 of its 95th percentile) that does not touch the
+  face's border.
+
+Prints one summary line per figure and exits 1 when the on-ridge fraction is below --require or
+any whisker-frame lies on a pole (so a test can call it).
+"""
+import argparse
+import json
+import sys
+
+import cv2
+import numpy as np
+
+
+def sample(img, x, y):
+    """Bilinear samples of img at float arrays x, y (clamped to the image)."""
+    h, w = img.shape
+    x = np.clip(x, 0, w - 1.001)
+    y = np.clip(y, 0, h - 1.001)
+    x0 = np.floor(x).astype(int)
+    y0 = np.floor(y).astype(int)
+    fx = x - x0
+    fy = y - y0
+    top = img[y0, x0] * (1 - fx) + img[y0, x0 + 1] * fx
+    bottom = img[y0 + 1, x0] * (1 - fx) + img[y0 + 1, x0 + 1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def curve_samples(nodes, skip_px=3.0):
+    """Points every pixel along the polyline through nodes, and unit normals."""
+    pts = np.asarray(nodes, dtype=float)[:, :2]
+    seg = np.diff(pts, axis=0)
+    lengths = np.hypot(seg[:, 0], seg[:, 1])
+    s = np.concatenate([[0.0], np.cumsum(lengths)])
+    if s[-1] <= skip_px + 1:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    t = np.arange(skip_px, s[-1], 1.0)
+    idx = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(seg) - 1)
+    frac = (t - s[idx]) / np.maximum(lengths[idx], 1e-9)
+    p = pts[idx] + seg[idx] * frac[:, None]
+    tangent = seg[idx] / np.maximum(lengths[idx], 1e-9)[:, None]
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    return p, normal
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--video", required=True)
+    ap.add_argument("--results", required=True, help="sinew-track --whiskers JSON Lines")
+    ap.add_argument("--min-depth", type=float, default=2.0, help="grey levels")
+    ap.add_argument("--min-fraction", type=float, default=0.8)
+    ap.add_argument("--require", type=float, default=0.0,
+                    help="exit 1 when the on-ridge fraction of whisker-frames is below this")
+    args = ap.parse_args()
+
+    frames = {}
+    face = "left"
+    with open(args.results) as f:
+        for line in f:
+            rec = json.loads(line)
+            if "detection" in rec:
+                face = rec["detection"]["face"]
+                continue
+            frames[rec["frame"]] = rec["whiskers"]
+
+    cap = cv2.VideoCapture(args.video)
+    if not cap.isOpened():
+        sys.exit(f"{args.video}: cannot open")
+    index = -1
+    checked = on_ridge = on_pole = 0
+    per_whisker = {}
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        index += 1
+        if index not in frames:
+            continue
+        grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
+        g = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 1.0)
+        coarse = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 4.0)
+        dark = (coarse < 0.35 * np.percentile(coarse, 95)).astype(np.uint8)
+        count, labels = cv2.connectedComponents(dark, connectivity=8)
+        border = {"left": labels[:, 0], "right": labels[:, -1], "top": labels[0, :],
+                  "bottom": labels[-1, :]}.get(face, labels[:, 0])
+        face_labels = set(np.unique(border).tolist()) - {0}
+        other_dark = dark.astype(bool) & ~np.isin(labels, list(face_labels))
+        for w in frames[index]:
+            if w["status"] == "lost":
+                continue
+            p, n = curve_samples(w["nodes"])
+            if len(p) == 0:
+                continue
+            centre = np.min([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1])
+                             for k in (-1.0, -0.5, 0.0, 0.5, 1.0)], axis=0)
+            left = np.mean([sample(g, p[:, 0] - k * n[:, 0], p[:, 1] - k * n[:, 1])
+                            for k in (4.0, 5.0)], axis=0)
+            right = np.mean([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1])
+                             for k in (4.0, 5.0)], axis=0)
+            depth = np.minimum(left, right) - centre
+            fraction = float(np.mean(depth >= args.min_depth))
+            xi = np.clip(np.round(p[:, 0]).astype(int), 0, grey.shape[1] - 1)
+            yi = np.clip(np.round(p[:, 1]).astype(int), 0, grey.shape[0] - 1)
+            pole = float(np.mean(other_dark[yi, xi])) > 1.0 / 3.0
+            checked += 1
+            ridge = fraction >= args.min_fraction
+            on_ridge += ridge
+            on_pole += pole
+            stats = per_whisker.setdefault(w["id"], [0, 0])
+            stats[0] += 1
+            stats[1] += ridge
+    total = sum(len(v) for v in frames.values())
+    fraction = on_ridge / checked if checked else 0.0
+    print(f"whisker-frames: {total}, tracked (ok or not_converged) {checked}")
+    print(f"on a dark ridge (>= {args.min_fraction:.0%} of the curve >= {args.min_depth} grey "
+          f"levels deep): {on_ridge} = {100 * fraction:.1f}% of tracked, "
+          f"{100 * on_ridge / max(total, 1):.1f}% of all")
+    print(f"on a pole or other thick dark object: {on_pole}")
+    print("per whisker (id: tracked, on ridge): " +
+          ", ".join(f"{k}: {v[0]}, {v[1]}" for k, v in sorted(per_whisker.items())))
+    if fraction < args.require or on_pole > 0:
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,205 @@
+#include "tools/track/whiskers.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "rt/whisker/detection.hpp"
+#include "rt/whisker/whisker_tracker.hpp"
+#include "tools/io/json_file.hpp"
+#include "tools/track/frame_source.hpp"
+
+namespace sinew::tools {
+
+namespace {
+
+rt::FaceSide parse_face(const std::string& face) {
+  if (face == "auto") return rt::FaceSide::kAuto;
+  if (face == "left") return rt::FaceSide::kLeft;
+  if (face == "right") return rt::FaceSide::kRight;
+  if (face == "top") return rt::FaceSide::kTop;
+  if (face == "bottom") return rt::FaceSide::kBottom;
+  throw InputError("--face = \"" + face + "\" must be auto, left, right, top or bottom");
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t k =
+      std::min(v.size() - 1, static_cast<std::size_t>(std::floor(q * (v.size() - 1) + 0.5)));
+  return v[k];
+}
+
+// A colour per identity (golden-ratio hues), so a whisker keeps its colour through the video.
+cv::Scalar id_colour(int id) {
+  cv::Mat hsv(1, 1, CV_8UC3, cv::Scalar(static_cast<int>(std::fmod(id * 0.618034, 1.0) * 180),
+                                        220, 255));
+  cv::Mat bgr;
+  cv::cvtColor(hsv, bgr, cv::COLOR_HSV2BGR);
+  const cv::Vec3b c = bgr.at<cv::Vec3b>(0, 0);
+  return cv::Scalar(c[0], c[1], c[2]);
+}
+
+void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker, int frame) {
+  for (int w = 0; w < tracker.num_whiskers(); ++w) {
+    const rt::Tracker& t = tracker.whisker(w);
+    const rt::WhiskerFrame& r = tracker.result(w);
+    const bool lost = r.status == rt::FrameStatus::kLost;
+    const cv::Scalar colour = lost ? cv::Scalar(0, 0, 255) : id_colour(w);
+    for (int e = 0; e < t.model().num_elements(); ++e) {
+      cv::Point2d prev;
+      for (int k = 0; k <= 6; ++k) {
+        const rt::CentrelinePoint p = t.centreline(e, k / 6.0);
+        const cv::Point2d q(p.position.x(), p.position.y());
+        if (k > 0) cv::line(img, prev, q, colour, 1, cv::LINE_AA);
+        prev = q;
+      }
+    }
+    const cv::Point2d f(r.follicle.x(), r.follicle.y());
+    cv::circle(img, f, 3, colour, -1, cv::LINE_AA);
+    cv::putText(img, std::to_string(w), cv::Point2d(r.tip.x() + 3, r.tip.y() + 3),
+                cv::FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv::LINE_AA);
+  }
+  cv::putText(img, "frame " + std::to_string(frame), cv::Point(8, img.rows - 10),
+              cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 0), 1, cv::LINE_AA);
+}
+
+nlohmann::json point(const Eigen::Vector2d& p) { return {p.x(), p.y()}; }
+
+}  // namespace
+
+int run_whiskers(const WhiskerTrackArgs& args) {
+  rt::WhiskerDetectionOptions detect_options;
+  detect_options.face = parse_face(args.face);
+  detect_options.min_length_px = args.min_length_px;
+  FrameSource source(args.input, args.first, args.stride, args.count);
+
+  std::ofstream out(args.out + ".tmp");
+  if (!out) throw InputError(args.out + ": cannot open file for writing");
+  const bool overlay_video =
+      args.overlay.size() > 4 && (args.overlay.substr(args.overlay.size() - 4) == ".mp4" ||
+                                  args.overlay.substr(args.overlay.size() - 4) == ".avi");
+  if (!args.overlay.empty() && !overlay_video) std::filesystem::create_directories(args.overlay);
+  cv::VideoWriter video;
+
+  std::optional<rt::WhiskerTracker> tracker;
+  std::vector<double> latencies;
+  std::map<std::string, int> statuses;
+  cv::Mat grey, colour;
+  int index = 0, processed = 0;
+  double detect_ms = 0.0;
+  while (source.next(grey, index)) {
+    const rt::ImageView view{grey.ptr<std::uint8_t>(), grey.cols, grey.rows,
+                             static_cast<std::ptrdiff_t>(grey.step[0])};
+    if (!tracker) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const rt::WhiskerDetection found = rt::detect_whiskers(view, detect_options);
+      detect_ms = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
+      if (!found.error.empty()) throw InputError(args.input + ": frame " + std::to_string(index) +
+                                                 ": " + found.error);
+      std::vector<std::vector<Eigen::Vector2d>> traces;
+      nlohmann::json record = nlohmann::json::array();
+      for (std::size_t w = 0; w < found.whiskers.size(); ++w) {
+        traces.push_back(found.whiskers[w].points);
+        record.push_back({{"id", w},
+                          {"follicle", point(found.whiskers[w].follicle)},
+                          {"length_px", found.whiskers[w].length_px},
+                          {"contrast_percent", found.whiskers[w].contrast_percent}});
+      }
+      out << nlohmann::json{{"detection",
+                             {{"frame", index},
+                              {"face", rt::to_string(found.face)},
+                              {"backlight", found.backlight},
+                              {"seconds", detect_ms * 1e-3},
+                              {"whiskers", record}}}}
+                 .dump()
+          << "\n";
+      if (!args.quiet) {
+        std::cout << "sinew-track: " << found.whiskers.size() << " whiskers found on frame "
+                  << index << " (face " << rt::to_string(found.face) << ", " << detect_ms
+                  << " ms)\n";
+      }
+      rt::WhiskerTrackerOptions track_options;
+      // No ridge is looked for where detection saw the face or another dark object.
+      track_options.tracker.ridge_min_background = detect_options.dark_fraction * found.backlight;
+      tracker.emplace(traces, track_options);
+      if (!tracker->valid()) throw InputError(args.input + ": " + tracker->error());
+    }
+    const double seconds = tracker->track(view);
+    latencies.push_back(seconds * 1e6);
+    nlohmann::json line;
+    line["frame"] = index;
+    line["latency_us"] = seconds * 1e6;
+    nlohmann::json whiskers = nlohmann::json::array();
+    for (int w = 0; w < tracker->num_whiskers(); ++w) {
+      const rt::Tracker& t = tracker->whisker(w);
+      const rt::WhiskerFrame& r = tracker->result(w);
+      nlohmann::json nodes = nlohmann::json::array();
+      for (int i = 0; i < t.num_nodes(); ++i) {
+        const Eigen::Vector2d x = t.node_position(i);
+        nodes.push_back({x.x(), x.y(), t.state()[3 * i + 2]});
+      }
+      const std::string status = rt::to_string(r.status);
+      ++statuses[status];
+      whiskers.push_back({{"id", w},
+                          {"status", status},
+                          {"nodes", nodes},
+                          {"follicle", point(r.follicle)},
+                          {"tip", point(r.tip)},
+                          {"length_px", r.length_px},
+                          {"on_neighbour", r.on_neighbour},
+                          {"jumped", r.jumped},
+                          {"inlier_fraction", r.summary.inlier_fraction}});
+    }
+    line["whiskers"] = whiskers;
+    out << line.dump() << "\n";
+
+    if (!args.overlay.empty()) {
+      cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
+      draw_whiskers(colour, *tracker, index);
+      if (overlay_video) {
+        if (!video.isOpened()) {
+          video.open(args.overlay, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 30.0,
+                     colour.size());
+          if (!video.isOpened()) throw InputError(args.overlay + ": cannot write a video here");
+        }
+        video.write(colour);
+      } else {
+        char name[64];
+        std::snprintf(name, sizeof name, "/overlay_%05d.png", index);
+        cv::imwrite(args.overlay + name, colour);
+      }
+    }
+    ++processed;
+    if (!args.quiet && processed % 100 == 0) {
+      std::cerr << "sinew-track: " << processed << " frames, median latency "
+                << percentile(latencies, 0.5) << " us\n";
+    }
+  }
+  out.close();
+  if (processed == 0) {
+    std::filesystem::remove(args.out + ".tmp");
+    throw InputError(args.input + ": no frame to process (check --first/--count)");
+  }
+  std::filesystem::rename(args.out + ".tmp", args.out);
+  if (!args.quiet) {
+    std::cout << "sinew-track: " << processed << " frames, " << tracker->num_whiskers()
+              << " whiskers from " << source.description() << "\n  whisker-frames:";
+    for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
+    std::cout << "\n  latency per frame (all whiskers): median " << percentile(latencies, 0.5)
+              << " us, p99 " << percentile(latencies, 0.99) << " us; detection " << detect_ms
+              << " ms\n  results: " << args.out << "\n";
+    if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
+  }
+  return 0;
+}
+
+}  // namespace sinew::tools
