@@ -297,8 +297,8 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
   const Maps m = build_maps(frame, o, &side, &result.backlight);
   result.face = side;
   if (cv::countNonZero(m.face) == 0) {
-    result.error = std::string("whisker detection: no dark region touches the ") +
-                   to_string(side) + " border (no face); is the face on another side?";
+    result.error = std::string("whisker detection: no dark region touches the ") + to_string(side) +
+                   " border (no face); is the face on another side?";
     return result;
   }
 

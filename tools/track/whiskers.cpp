@@ -40,8 +40,8 @@ double percentile(std::vector<double> v, double q) {
 
 // A colour per identity (golden-ratio hues), so a whisker keeps its colour through the video.
 cv::Scalar id_colour(int id) {
-  cv::Mat hsv(1, 1, CV_8UC3, cv::Scalar(static_cast<int>(std::fmod(id * 0.618034, 1.0) * 180),
-                                        220, 255));
+  cv::Mat hsv(1, 1, CV_8UC3,
+              cv::Scalar(static_cast<int>(std::fmod(id * 0.618034, 1.0) * 180), 220, 255));
   cv::Mat bgr;
   cv::cvtColor(hsv, bgr, cv::COLOR_HSV2BGR);
   const cv::Vec3b c = bgr.at<cv::Vec3b>(0, 0);
@@ -72,7 +72,9 @@ void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker, int frame) {
               cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 0), 1, cv::LINE_AA);
 }
 
-nlohmann::json point(const Eigen::Vector2d& p) { return {p.x(), p.y()}; }
+nlohmann::json point(const Eigen::Vector2d& p) {
+  return {p.x(), p.y()};
+}
 
 }  // namespace
 
@@ -102,9 +104,10 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     if (!tracker) {
       const auto t0 = std::chrono::steady_clock::now();
       const rt::WhiskerDetection found = rt::detect_whiskers(view, detect_options);
-      detect_ms = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
-      if (!found.error.empty()) throw InputError(args.input + ": frame " + std::to_string(index) +
-                                                 ": " + found.error);
+      detect_ms =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
+      if (!found.error.empty())
+        throw InputError(args.input + ": frame " + std::to_string(index) + ": " + found.error);
       std::vector<std::vector<Eigen::Vector2d>> traces;
       nlohmann::json record = nlohmann::json::array();
       for (std::size_t w = 0; w < found.whiskers.size(); ++w) {
