@@ -99,6 +99,7 @@ std::optional<std::string> TrackerOptions::validate() const {
   if (!(ridge_min_background >= 0.0)) {
     return field_error("ridge_min_background", ridge_min_background, "must be >= 0");
   }
+  if (!(end_weight > 0.0)) return field_error("end_weight", end_weight, "must be > 0");
   if (!(dark_region_min_step > 0.0)) {
     return field_error("dark_region_min_step", dark_region_min_step, "must be > 0");
   }
@@ -331,6 +332,24 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
 
 void Tracker::reset_motion() noexcept {
   u_prev2_ = u_prev1_;
+  last_miss_px_ = std::numeric_limits<double>::infinity();
+}
+
+void Tracker::restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes) noexcept {
+  const int n = model_.num_nodes();
+  if (nodes.cols() != n) return;
+  for (int i = 0; i < n; ++i) {
+    u_.segment<2>(3 * i) = nodes.col(i) - model_.rest_positions().col(i);
+    // The node's tangent now (central chord) against its reference tangent.
+    const Eigen::Vector2d t = nodes.col(std::min(i + 1, n - 1)) - nodes.col(std::max(i - 1, 0));
+    const Eigen::Vector2d t0 = node_tangents_.col(i);
+    u_[3 * i + 2] = std::atan2(t0.x() * t.y() - t0.y() * t.x(), t0.dot(t));
+  }
+  u_prev1_ = u_;
+  u_prev2_ = u_;
+  previous_lost_ = true;
+  last_accepted_ = false;
+  verify_have_previous_ = false;
   last_miss_px_ = std::numeric_limits<double>::infinity();
 }
 
@@ -612,15 +631,26 @@ void Tracker::add_image_term(double cutoff) {
   while (l < lines_.size()) {
     const std::size_t first = l;
     double sum_w = 0.0, sum_wd = 0.0;
+    // The follicle's face edge is one strong feature, not one of many samples of the object: its
+    // robust scale is the distance its search covers, not the normals' (a whisker that slid by
+    // more than the normals' cut-off would otherwise never be pulled back).
+    const bool follicle = lines_[first].end < 0 && options_.start_end == StartEnd::kDarkRegion;
+    const double line_cutoff =
+        follicle ? std::max(cutoff, double(options_.first_search_range_px)) : cutoff;
+    const double line_inverse_cutoff = follicle ? 1.0 / line_cutoff : inverse_cutoff;
     for (; l < lines_.size() && lines_[l].point == lines_[first].point; ++l) {
       const float d = residual_[l];
-      if (!(std::abs(d) < cutoff)) continue;  // NaN or an outlier: weight 0
-      const double r = d * inverse_cutoff;
+      if (!(std::abs(d) < line_cutoff)) continue;  // NaN or an outlier: weight 0
+      const double r = d * line_inverse_cutoff;
       const double w = observation_weight_ * (1.0 - r * r) * (1.0 - r * r);  // Tukey
       sum_w += w;
       sum_wd += w * d;
     }
     if (sum_w == 0.0) continue;
+    if (lines_[first].end != 0) {
+      sum_w *= options_.end_weight;
+      sum_wd *= options_.end_weight;
+    }
     if (lines_[first].element != element) {
       scatter();
       element = lines_[first].element;

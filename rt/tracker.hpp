@@ -128,6 +128,9 @@ struct TrackerOptions {
   /// tip, whose contrast fades to nothing) is not observed along the tangent: the beam's axial
   /// stiffness keeps its length.
   StartEnd start_end = StartEnd::kObjectEnd;
+  /// Weight of an end search line relative to a search line along a normal, > 0. A free beam is
+  /// held along itself by its end observations alone, against the whole length's normal lines.
+  double end_weight = 1.0;
   /// kDarkRegion: weakest intensity step accepted as the dark region's edge, grey levels per
   /// pixel, > 0.
   double dark_region_min_step = 10.0;
@@ -201,6 +204,12 @@ class Tracker {
 
   /// Forgets the motion history: the next frame starts from the last state without velocity.
   void reset_motion() noexcept;
+
+  /// Starts again from the node positions `nodes` (2 x num_nodes(), pixels; e.g. the object found
+  /// again by a detector): translations from them, rotations from their polyline's tangents
+  /// against the reference's, no velocity, and the next frame searches as after a lost frame.
+  /// Outside the per-frame contract only in that the caller decides when; no allocation.
+  void restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes) noexcept;
 
   /// Discards the last frame's fit (a caller found it on another object: a neighbouring whisker,
   /// a pole): the state returns to the frame before, and the next frame searches as after a lost

@@ -9,8 +9,12 @@ residuals do not vouch for themselves. For every whisker-frame reported "ok" or 
   first 3 px (the follicle sits on the face's edge, where one side is dark);
 - a sample is on a ridge when, in the frame smoothed with a Gaussian of 1 px, the darkest pixel
   within 1 px of it along the curve's normal is darker than both sides (4 and 5 px out on each
-  side, averaged) by at least --min-depth grey levels;
+  side, averaged) by at least --min-depth grey levels (default 1: the shared video's whiskers
+  fade to 1–2 grey levels towards the tips);
 - the whisker-frame is on a ridge when at least --min-fraction of its samples are;
+- as a control of the measure itself, the same test runs on each curve moved 7 px sideways
+  (off its whisker, onto the backlight or a neighbour): the fraction of those that pass is the
+  measure's own false-positive rate, printed beside the result;
 - it is on a pole when more than a third of its samples lie inside a dark region (the frame
   smoothed with a Gaussian of 4 px below 0.35 of its 95th percentile) that does not touch the
   face's border.
@@ -40,6 +44,17 @@ def sample(img, x, y):
     return top * (1 - fy) + bottom * fy
 
 
+def ridge_depth(g, p, n):
+    """Per sample: how much darker the darkest pixel within 1 px across is than both sides."""
+    centre = np.min([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1])
+                     for k in (-1.0, -0.5, 0.0, 0.5, 1.0)], axis=0)
+    left = np.mean([sample(g, p[:, 0] - k * n[:, 0], p[:, 1] - k * n[:, 1])
+                    for k in (4.0, 5.0)], axis=0)
+    right = np.mean([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1])
+                     for k in (4.0, 5.0)], axis=0)
+    return np.minimum(left, right) - centre
+
+
 def curve_samples(nodes, skip_px=3.0):
     """Points every pixel along the polyline through nodes, and unit normals."""
     pts = np.asarray(nodes, dtype=float)[:, :2]
@@ -61,8 +76,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--video", required=True)
     ap.add_argument("--results", required=True, help="sinew-track --whiskers JSON Lines")
-    ap.add_argument("--min-depth", type=float, default=2.0, help="grey levels")
-    ap.add_argument("--min-fraction", type=float, default=0.8)
+    ap.add_argument("--min-depth", type=float, default=1.0, help="grey levels")
+    ap.add_argument("--min-fraction", type=float, default=0.7)
     ap.add_argument("--require", type=float, default=0.0,
                     help="exit 1 when the on-ridge fraction of whisker-frames is below this")
     args = ap.parse_args()
@@ -82,6 +97,7 @@ def main():
         sys.exit(f"{args.video}: cannot open")
     index = -1
     checked = on_ridge = on_pole = 0
+    controls = control_pass = 0
     per_whisker = {}
     while True:
         ok, frame = cap.read()
@@ -105,14 +121,11 @@ def main():
             p, n = curve_samples(w["nodes"])
             if len(p) == 0:
                 continue
-            centre = np.min([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1])
-                             for k in (-1.0, -0.5, 0.0, 0.5, 1.0)], axis=0)
-            left = np.mean([sample(g, p[:, 0] - k * n[:, 0], p[:, 1] - k * n[:, 1])
-                            for k in (4.0, 5.0)], axis=0)
-            right = np.mean([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1])
-                             for k in (4.0, 5.0)], axis=0)
-            depth = np.minimum(left, right) - centre
-            fraction = float(np.mean(depth >= args.min_depth))
+            fraction = float(np.mean(ridge_depth(g, p, n) >= args.min_depth))
+            for shift in (-7.0, 7.0):
+                control = float(np.mean(ridge_depth(g, p + shift * n, n) >= args.min_depth))
+                controls += 1
+                control_pass += control >= args.min_fraction
             xi = np.clip(np.round(p[:, 0]).astype(int), 0, grey.shape[1] - 1)
             yi = np.clip(np.round(p[:, 1]).astype(int), 0, grey.shape[0] - 1)
             pole = float(np.mean(other_dark[yi, xi])) > 1.0 / 3.0
@@ -129,6 +142,8 @@ def main():
     print(f"on a dark ridge (>= {args.min_fraction:.0%} of the curve >= {args.min_depth} grey "
           f"levels deep): {on_ridge} = {100 * fraction:.1f}% of tracked, "
           f"{100 * on_ridge / max(total, 1):.1f}% of all")
+    print(f"control, the same curves moved 7 px sideways: {control_pass} of {controls} pass "
+          f"({100 * control_pass / max(controls, 1):.1f}%, the measure's false-positive rate)")
     print(f"on a pole or other thick dark object: {on_pole}")
     print("per whisker (id: tracked, on ridge): " +
           ", ".join(f"{k}: {v[0]}, {v[1]}" for k, v in sorted(per_whisker.items())))

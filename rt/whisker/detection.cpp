@@ -32,12 +32,14 @@ bool sample(const cv::Mat& m, double x, double y, float* v) {
 // The maps detection reads: smoothed image, Hessian normal, ridge contrast, darkness, distance
 // from the face.
 struct Maps {
-  cv::Mat smooth;    // CV_32F, Gaussian(smoothing_px)
-  cv::Mat nx, ny;    // CV_32F unit normal (direction of largest curvature)
-  cv::Mat contrast;  // CV_32F ridge contrast, per cent
-  cv::Mat dark;      // CV_8U, 255 where the heavily smoothed image is dark
-  cv::Mat face;      // CV_8U, 255 on the face
-  cv::Mat distance;  // CV_32F distance from the face, pixels
+  cv::Mat smooth;                   // CV_32F, Gaussian(smoothing_px)
+  cv::Mat nx, ny;                   // CV_32F unit normal (direction of largest curvature)
+  cv::Mat contrast;                 // CV_32F ridge contrast, per cent
+  cv::Mat dark;                     // CV_8U, 255 where the heavily smoothed image is dark
+  cv::Mat face;                     // CV_8U, 255 on the face
+  cv::Mat distance;                 // CV_32F distance from the face, pixels
+  double noise = 0.0;               // robust σ of the contrast map over the backlight, per cent
+  double seed = 0.0, follow = 0.0;  // thresholds in force: the options' or the noise's
 };
 
 // Ridge normal at (x, y): direction of the largest eigenvalue of the Hessian there.
@@ -151,6 +153,23 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
       if (hits[labels.at<int>(y, x)] > 0) m.face.at<std::uint8_t>(y, x) = 255;
     }
   }
+  // The contrast map's noise: most backlight pixels are on no ridge, so the median |contrast|
+  // there is the noise's (× 1.4826 for σ).
+  std::vector<float> background;
+  background.reserve(static_cast<std::size_t>(f.total()));
+  for (int y = 0; y < f.rows; ++y) {
+    for (int x = 0; x < f.cols; ++x) {
+      if (!m.dark.at<std::uint8_t>(y, x))
+        background.push_back(std::abs(m.contrast.at<float>(y, x)));
+    }
+  }
+  if (!background.empty()) {
+    std::nth_element(background.begin(), background.begin() + background.size() / 2,
+                     background.end());
+    m.noise = 1.4826 * background[background.size() / 2];
+  }
+  m.seed = std::max(o.seed_contrast, o.seed_noise_factor * m.noise);
+  m.follow = std::max(o.follow_contrast, o.follow_noise_factor * m.noise);
   cv::Mat not_face;
   cv::bitwise_not(m.face, not_face);
   cv::distanceTransform(not_face, m.distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
@@ -196,7 +215,7 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
         best_offset = 0.25 * k;
       }
     }
-    if (best >= o.follow_contrast) {
+    if (best >= m.follow) {
       q += best_offset * n;
       gap = 0;
     } else if (++gap > o.max_gap_px) {
@@ -207,16 +226,27 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     const Eigen::Vector2d nr = normal_at(m, q.x(), q.y());
     Eigen::Vector2d tr(-nr.y(), nr.x());
     if (tr.dot(t) < 0.0) tr = -tr;
-    const std::size_t back = std::min<std::size_t>(trace.points.size(), 4);
+    const std::size_t back = std::min<std::size_t>(trace.points.size(), 8);
     Eigen::Vector2d chord = q - trace.points[trace.points.size() - back];
     chord = chord.norm() > 1e-9 ? Eigen::Vector2d(chord.normalized()) : t;
-    Eigen::Vector2d t_new = (0.5 * tr + 0.5 * chord);
+    Eigen::Vector2d t_new = (0.3 * tr + 0.7 * chord);
     // A turn of more than ~25° in one pixel is not a whisker's (noise or a crossing): keep going.
     if (t_new.norm() < 1e-9 || t_new.normalized().dot(t) < 0.9) t_new = t;
     t = t_new.normalized();
     p = q;
     trace.points.push_back(p);
     if (gap == 0) last_strong = trace.points.size() - 1;
+    // A whisker does not turn by more than 35° over 12 px (radius of curvature ≥ 20 px): a trace
+    // that does has left it (noise at a faint tip, a neighbour at a crossing).
+    const std::size_t np = trace.points.size();
+    if (np > 24) {
+      const Eigen::Vector2d recent = trace.points[np - 1] - trace.points[np - 13];
+      const Eigen::Vector2d before = trace.points[np - 13] - trace.points[np - 25];
+      if (recent.normalized().dot(before.normalized()) < std::cos(35.0 * M_PI / 180.0)) {
+        last_strong = std::min(last_strong, np - 13);
+        break;
+      }
+    }
   }
   trace.points.resize(last_strong + 1);
   return trace;
@@ -271,6 +301,12 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
     return field_error("follow_contrast", follow_contrast, "must be > 0");
   }
   if (max_gap_px < 0) return field_error("max_gap_px", max_gap_px, "must be >= 0");
+  if (!(seed_noise_factor >= 0.0)) {
+    return field_error("seed_noise_factor", seed_noise_factor, "must be >= 0");
+  }
+  if (!(follow_noise_factor >= 0.0)) {
+    return field_error("follow_noise_factor", follow_noise_factor, "must be >= 0");
+  }
   if (!(min_length_px >= 0.0)) return field_error("min_length_px", min_length_px, "must be >= 0");
   if (!(dark_fraction > 0.0 && dark_fraction < 1.0)) {
     return field_error("dark_fraction", dark_fraction, "must be in (0, 1)");
@@ -296,6 +332,9 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
   FaceSide side = o.face;
   const Maps m = build_maps(frame, o, &side, &result.backlight);
   result.face = side;
+  result.noise_percent = m.noise;
+  result.seed_contrast = m.seed;
+  result.follow_contrast = m.follow;
   if (cv::countNonZero(m.face) == 0) {
     result.error = std::string("whisker detection: no dark region touches the ") + to_string(side) +
                    " border (no face); is the face on another side?";
@@ -314,7 +353,7 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     for (int x = 1; x < m.contrast.cols - 1; ++x) {
       const float d = m.distance.at<float>(y, x);
       const float c = m.contrast.at<float>(y, x);
-      if (d < 2.0f || c < o.seed_contrast || m.dark.at<std::uint8_t>(y, x)) {
+      if (d < 2.0f || c < m.seed || m.dark.at<std::uint8_t>(y, x)) {
         continue;
       }
       const Eigen::Vector2d p(x, y), n = normal_at(m, x, y);

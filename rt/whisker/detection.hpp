@@ -43,6 +43,10 @@ struct WhiskerDetectionOptions {
   double max_contrast = 20.0;
   /// Tracing goes on while the contrast (per cent) is at least this, > 0.
   double follow_contrast = 1.2;
+  /// The thresholds above are raised to these multiples of the contrast map's own noise (its
+  /// robust σ over the backlight), so that noise is neither seeded nor followed, ≥ 0.
+  double seed_noise_factor = 5.0;
+  double follow_noise_factor = 2.5;
   /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
   int max_gap_px = 12;
   /// Shortest whisker reported, pixels.
@@ -71,8 +75,11 @@ struct WhiskerDetection {
   std::vector<DetectedWhisker> whiskers;  ///< ordered along the face's edge
   FaceSide face = FaceSide::kAuto;        ///< the side used (resolved when kAuto was asked)
   double backlight = 0.0;                 ///< the bright level the dark fraction is taken of
-  int seeds = 0;                          ///< ridge points near the face that were traced
-  std::string error;                      ///< empty on success (bad options, no face found)
+  int seeds = 0;                          ///< ridge points that were traced
+  double noise_percent = 0.0;             ///< robust σ of the ridge contrast over the backlight
+  double seed_contrast = 0.0;             ///< the seed and follow thresholds used, per cent
+  double follow_contrast = 0.0;
+  std::string error;  ///< empty on success (bad options, no face found)
 };
 
 /// Detects the whiskers of one 8-bit grey frame.

@@ -53,6 +53,8 @@ TrackerOptions WhiskerTrackerOptions::default_tracker_options() {
   t.search_range_px = 6;
   t.first_search_range_px = 10;
   t.verify_forces = false;
+  // The follicle's observation holds the whole whisker along itself: weigh it as an element.
+  t.end_weight = t.samples_per_element;
   return t;
 }
 
@@ -133,6 +135,110 @@ double WhiskerTracker::fraction_near(int a, int b) const {
   return static_cast<double>(near) / ta.num_nodes();
 }
 
+double WhiskerTracker::fraction_near(const Eigen::Matrix2Xd& points, int b) const {
+  const Tracker& tb = trackers_[b];
+  const double limit_sq = options_.claim_px * options_.claim_px;
+  int near = 0;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int j = 0; j + 1 < tb.num_nodes() && best > limit_sq; ++j) {
+      best = std::min(
+          best, segment_distance_sq(points.col(i), tb.node_position(j), tb.node_position(j + 1)));
+    }
+    near += best <= limit_sq;
+  }
+  return points.cols() > 0 ? static_cast<double>(near) / points.cols() : 0.0;
+}
+
+bool WhiskerTracker::any_lost() const {
+  for (const WhiskerFrame& r : results_) {
+    if (r.status == FrameStatus::kLost) return true;
+  }
+  return false;
+}
+
+int WhiskerTracker::reacquire(const std::vector<std::vector<Eigen::Vector2d>>& detected) {
+  const int n = num_whiskers();
+  // Each detected whisker resampled at every tracked whisker's rest arc lengths is done on
+  // demand; first the candidates: detected curves no tracked whisker runs along.
+  std::vector<char> free(detected.size(), 1);
+  for (std::size_t d = 0; d < detected.size(); ++d) {
+    if (detected[d].size() < 2) {
+      free[d] = 0;
+      continue;
+    }
+    Eigen::Matrix2Xd pts(2, detected[d].size());
+    for (std::size_t k = 0; k < detected[d].size(); ++k) pts.col(k) = detected[d][k];
+    for (int b = 0; b < n && free[d]; ++b) {
+      if (results_[b].status == FrameStatus::kLost) continue;
+      if (fraction_near(pts, b) > options_.claim_fraction) free[d] = 0;
+    }
+  }
+  // Pairs (lost whisker, candidate) by follicle distance, nearest first.
+  struct Pair {
+    double distance;
+    int whisker;
+    std::size_t candidate;
+  };
+  std::vector<Pair> pairs;
+  const double cos_limit = std::cos(options_.reacquire_angle_deg * M_PI / 180.0);
+  for (int w = 0; w < n; ++w) {
+    if (results_[w].status != FrameStatus::kLost) continue;
+    const Tracker& t = trackers_[w];
+    const Eigen::Vector2d base = t.node_position(0);
+    const Eigen::Vector2d dir = (t.node_position(1) - base).normalized();
+    for (std::size_t d = 0; d < detected.size(); ++d) {
+      if (!free[d]) continue;
+      const double distance = (detected[d].front() - base).norm();
+      if (distance > options_.reacquire_radius_px) continue;
+      // The detected direction over the same arc length as the whisker's first element.
+      const double first =
+          (t.model().rest_positions().col(1) - t.model().rest_positions().col(0)).norm();
+      std::size_t k = 1;
+      double s = 0.0;
+      while (k + 1 < detected[d].size() && s < first) {
+        s += (detected[d][k] - detected[d][k - 1]).norm();
+        ++k;
+      }
+      const Eigen::Vector2d ddir = (detected[d][k] - detected[d].front()).normalized();
+      if (ddir.dot(dir) < cos_limit) continue;
+      pairs.push_back({distance, w, d});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end(),
+            [](const Pair& a, const Pair& b) { return a.distance < b.distance; });
+  int restarted = 0;
+  std::vector<char> done(n, 0);
+  for (const Pair& p : pairs) {
+    if (done[p.whisker] || !free[p.candidate]) continue;
+    Tracker& t = trackers_[p.whisker];
+    // Nodes at the whisker's own rest arc lengths along the detected curve (past its end, along
+    // its last direction).
+    const auto& pts = detected[p.candidate];
+    std::vector<double> s(pts.size(), 0.0);
+    for (std::size_t i = 1; i < pts.size(); ++i) s[i] = s[i - 1] + (pts[i] - pts[i - 1]).norm();
+    Eigen::Matrix2Xd nodes(2, t.num_nodes());
+    double target = 0.0;
+    std::size_t seg = 0;
+    for (int i = 0; i < t.num_nodes(); ++i) {
+      if (i > 0) {
+        target +=
+            (t.model().rest_positions().col(i) - t.model().rest_positions().col(i - 1)).norm();
+      }
+      while (seg + 2 < pts.size() && s[seg + 1] < target) ++seg;
+      const double len = s[seg + 1] - s[seg];
+      const double a = len > 0.0 ? (target - s[seg]) / len : 0.0;  // may exceed 1 past the end
+      nodes.col(i) = pts[seg] + std::max(0.0, a) * (pts[seg + 1] - pts[seg]);
+    }
+    t.restart_at(nodes);
+    results_[p.whisker].reacquired = true;
+    done[p.whisker] = 1;
+    free[p.candidate] = 0;
+    ++restarted;
+  }
+  return restarted;
+}
+
 double WhiskerTracker::track(const ImageView& frame) noexcept {
   const auto t0 = std::chrono::steady_clock::now();
   const int n = num_whiskers();
@@ -142,6 +248,7 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
     r.summary = trackers_[w].track(frame);
     r.status = r.summary.status;
     r.on_neighbour = false;
+    r.reacquired = false;
     double moved = 0.0;
     const Eigen::VectorXd& u = trackers_[w].state();
     for (int i = 0; i < trackers_[w].num_nodes(); ++i) {

@@ -39,6 +39,9 @@ struct WhiskerTrackerOptions {
   /// pixels, > 0. Should exceed the true motion per frame (the search reaches
   /// tracker.first_search_range_px).
   double max_jump_px = 20.0;
+  /// See reacquire().
+  double reacquire_radius_px = 30.0;
+  double reacquire_angle_deg = 30.0;
   /// See the header comment.
   double claim_px = 1.5;
   double claim_fraction = 0.5;
@@ -52,6 +55,7 @@ struct WhiskerFrame {
   FrameStatus status = FrameStatus::kLost;
   bool on_neighbour = false;  ///< the fit ran onto another whisker and was discarded
   bool jumped = false;        ///< the fit moved more than max_jump_px and was discarded
+  bool reacquired = false;    ///< restarted by reacquire() after this frame
   Eigen::Vector2d follicle = Eigen::Vector2d::Zero();  ///< first node
   Eigen::Vector2d tip = Eigen::Vector2d::Zero();       ///< last node
   double length_px = 0.0;                              ///< along the fitted nodes
@@ -74,9 +78,22 @@ class WhiskerTracker {
   /// Tracks every whisker on one frame; returns the wall time in seconds. No allocation.
   double track(const ImageView& frame) noexcept;
 
+  /// Re-acquires the whiskers lost on the last tracked frame from whiskers detected on it
+  /// (detect_whiskers; follicle first). A lost whisker takes the detected one whose follicle is
+  /// nearest its own last follicle, within reacquire_radius_px, whose direction at the follicle
+  /// is within reacquire_angle_deg of its own, and along which no tracked whisker runs (the
+  /// claim test): never another whisker, a pole or a lick port, which detection does not report.
+  /// Its state restarts on that curve (Tracker::restart_at) and it is reported as re-acquired.
+  /// Outside the real-time contract (allocates); returns how many were re-acquired.
+  int reacquire(const std::vector<std::vector<Eigen::Vector2d>>& detected);
+  /// Any whisker lost on the last tracked frame.
+  bool any_lost() const;
+
  private:
-  // Largest fraction of whisker a's nodes within claim_px of whisker b's node polyline.
+  // Fraction of whisker a's nodes within claim_px of whisker b's node polyline.
   double fraction_near(int a, int b) const;
+  // Fraction of the points within claim_px of whisker b's node polyline.
+  double fraction_near(const Eigen::Matrix2Xd& points, int b) const;
 
   WhiskerTrackerOptions options_;
   std::string error_;

@@ -1,6 +1,7 @@
 // sinew-synth: synthetic image sequences of a plane beam under known loads, simulated with Sinew's
 // own StaticBeamSolver, for end-to-end tests of the tracker.
-//   sinew-synth --scenario cantilever|free_curved --out DIR [--frames 40] [--width 1024]
+//   sinew-synth --scenario cantilever|free_curved|whisker-pad --out DIR [--frames 40] [--width
+//   1024]
 //     [--height 768] [--elements 16] [--thickness thick|thin] [--half-width-px 6] [--lambda-max 5]
 //     [--noise 8] [--clutter 12] [--occluder FIRST:COUNT] [--vanish FIRST:COUNT]
 //     [--camera-motion none|pan_rotate] [--seed 1]
@@ -56,6 +57,7 @@
 #include "tools/io/json_file.hpp"
 #include "tools/synth/renderer.hpp"
 #include "tools/synth/scenario.hpp"
+#include "tools/synth/whisker_pad.hpp"
 
 namespace {
 
@@ -219,12 +221,36 @@ int main(int argc, char** argv) {
   std::string scenario, out, thickness = "thick", camera = "none", occluder, vanish;
   SynthOptions o;
   double half_width = 0.0;
-  app.add_option("--scenario", scenario, "cantilever | free_curved")->required();
+  app.add_option("--scenario", scenario, "cantilever | free_curved | whisker-pad")->required();
+  WhiskerPadOptions pad;
+  std::string face_motion = "none";
+  bool no_pole = false, no_lick_port = false;
+  app.add_option("--whiskers", pad.whiskers, "whisker-pad: number of whiskers")
+      ->capture_default_str();
+  app.add_option("--contrast-min", pad.contrast_min,
+                 "whisker-pad: base contrast of the faintest whisker, grey levels")
+      ->capture_default_str();
+  app.add_option("--contrast-max", pad.contrast_max,
+                 "whisker-pad: base contrast of the darkest whisker, grey levels")
+      ->capture_default_str();
+  app.add_option("--face-motion", face_motion, "whisker-pad: none | translate_rotate")
+      ->capture_default_str();
+  app.add_option("--fps", pad.fps, "whisker-pad: camera frame rate")->capture_default_str();
+  app.add_option("--whisk-hz", pad.whisk_hz, "whisker-pad: whisking frequency")
+      ->capture_default_str();
+  app.add_flag("--no-pole", no_pole, "whisker-pad: no pole");
+  app.add_flag("--no-lick-port", no_lick_port, "whisker-pad: no lick port");
   app.add_option("--out", out, "output folder (created): frames/, init.json, truth.jsonl")
       ->required();
-  app.add_option("--frames", o.frames, "number of frames, >= 2")->capture_default_str();
-  app.add_option("--width", o.width, "image width, pixels")->capture_default_str();
-  app.add_option("--height", o.height, "image height, pixels")->capture_default_str();
+  CLI::Option* frames_option =
+      app.add_option("--frames", o.frames, "number of frames, >= 2 (whisker-pad: 200)")
+          ->capture_default_str();
+  CLI::Option* width_option =
+      app.add_option("--width", o.width, "image width, pixels (whisker-pad: 640)")
+          ->capture_default_str();
+  CLI::Option* height_option =
+      app.add_option("--height", o.height, "image height, pixels (whisker-pad: 480)")
+          ->capture_default_str();
   app.add_option("--elements", o.elements, "tracker elements (the simulation uses 4x)")
       ->capture_default_str();
   app.add_option("--thickness", thickness, "thick (edges, half-width 6) | thin (dark line, 1.25)")
@@ -234,7 +260,9 @@ int main(int argc, char** argv) {
                                                   "(default 6 thick, 1.25 thin)");
   app.add_option("--lambda-max", o.lambda_max, "largest P L^2/EI of the sequence")
       ->capture_default_str();
-  app.add_option("--noise", o.noise, "Gaussian noise sigma, grey levels")->capture_default_str();
+  CLI::Option* noise_option =
+      app.add_option("--noise", o.noise, "Gaussian noise sigma, grey levels (whisker-pad: 4)")
+          ->capture_default_str();
   app.add_option("--clutter", o.clutter, "number of clutter line segments")->capture_default_str();
   app.add_option("--occluder", occluder,
                  "FIRST:COUNT frames with an occluder on the beam's middle");
@@ -253,12 +281,42 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    if (scenario == "whisker-pad") {
+      if (frames_option->count()) pad.frames = o.frames;
+      if (width_option->count()) pad.width = o.width;
+      if (height_option->count()) pad.height = o.height;
+      if (noise_option->count()) pad.noise = o.noise;
+      pad.seed = o.seed;
+      pad.pole = !no_pole;
+      pad.lick_port = !no_lick_port;
+      if (face_motion == "none") {
+        pad.face_motion = false;
+      } else if (face_motion == "translate_rotate") {
+        pad.face_motion = true;
+      } else {
+        throw UsageError("--face-motion " + face_motion + ": must be none or translate_rotate");
+      }
+      require_range("--frames", pad.frames, 2, 100000);
+      require_range("--width", pad.width, 320, 16384);
+      require_range("--height", pad.height, 240, 16384);
+      require_range("--whiskers", pad.whiskers, 1, 40);
+      require_range("--noise", pad.noise, 0.0, 255.0);
+      require_range("--contrast-min", pad.contrast_min, 0.0, 150.0);
+      require_range("--contrast-max", pad.contrast_max, pad.contrast_min, 150.0);
+      require_range("--fps", pad.fps, 1.0, 1e6);
+      require_range("--whisk-hz", pad.whisk_hz, 0.0, 1000.0);
+      write_whisker_pad(pad, out);
+      std::cout << "wrote " << pad.frames << " frames of " << pad.whiskers << " whiskers to " << out
+                << "/frames/, " << out << "/truth.jsonl\n";
+      return 0;
+    }
     if (scenario == "cantilever") {
       o.scenario = Scenario::kCantilever;
     } else if (scenario == "free_curved") {
       o.scenario = Scenario::kFreeCurved;
     } else {
-      throw UsageError("--scenario " + scenario + ": unknown scenario (cantilever, free_curved)");
+      throw UsageError("--scenario " + scenario +
+                       ": unknown scenario (cantilever, free_curved, whisker-pad)");
     }
     if (thickness == "thick") {
       o.thickness = Thickness::kThick;

@@ -93,7 +93,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   cv::VideoWriter video;
 
   std::optional<rt::WhiskerTracker> tracker;
-  std::vector<double> latencies;
+  std::vector<double> latencies, reacquire_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
   int index = 0, processed = 0;
@@ -121,14 +121,18 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                              {{"frame", index},
                               {"face", rt::to_string(found.face)},
                               {"backlight", found.backlight},
+                              {"noise_percent", found.noise_percent},
+                              {"seed_contrast", found.seed_contrast},
+                              {"follow_contrast", found.follow_contrast},
                               {"seconds", detect_ms * 1e-3},
                               {"whiskers", record}}}}
                  .dump()
           << "\n";
       if (!args.quiet) {
         std::cout << "sinew-track: " << found.whiskers.size() << " whiskers found on frame "
-                  << index << " (face " << rt::to_string(found.face) << ", " << detect_ms
-                  << " ms)\n";
+                  << index << " (face " << rt::to_string(found.face) << ", ridge noise "
+                  << found.noise_percent << " %, seed " << found.seed_contrast << " %, follow "
+                  << found.follow_contrast << " %; " << detect_ms << " ms)\n";
       }
       rt::WhiskerTrackerOptions track_options;
       // No ridge is looked for where detection saw the face or another dark object.
@@ -138,9 +142,22 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     }
     const double seconds = tracker->track(view);
     latencies.push_back(seconds * 1e6);
+    // Lost whiskers are looked for again near their last follicle (outside the real-time path).
+    double reacquire_ms = 0.0;
+    if (tracker->any_lost()) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const rt::WhiskerDetection again = rt::detect_whiskers(view, detect_options);
+      std::vector<std::vector<Eigen::Vector2d>> traces;
+      for (const auto& w : again.whiskers) traces.push_back(w.points);
+      if (again.error.empty()) tracker->reacquire(traces);
+      reacquire_ms =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
+      reacquire_times.push_back(reacquire_ms);
+    }
     nlohmann::json line;
     line["frame"] = index;
     line["latency_us"] = seconds * 1e6;
+    if (reacquire_ms > 0.0) line["reacquire_ms"] = reacquire_ms;
     nlohmann::json whiskers = nlohmann::json::array();
     for (int w = 0; w < tracker->num_whiskers(); ++w) {
       const rt::Tracker& t = tracker->whisker(w);
@@ -160,6 +177,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                           {"length_px", r.length_px},
                           {"on_neighbour", r.on_neighbour},
                           {"jumped", r.jumped},
+                          {"reacquired", r.reacquired},
                           {"inlier_fraction", r.summary.inlier_fraction}});
     }
     line["whiskers"] = whiskers;
@@ -199,7 +217,14 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
     std::cout << "\n  latency per frame (all whiskers): median " << percentile(latencies, 0.5)
               << " us, p99 " << percentile(latencies, 0.99) << " us; detection " << detect_ms
-              << " ms\n  results: " << args.out << "\n";
+              << " ms\n";
+    if (!reacquire_times.empty()) {
+      std::cout << "  re-acquisition (detection on frames with a lost whisker, outside the "
+                   "real-time path): "
+                << reacquire_times.size() << " frames, median " << percentile(reacquire_times, 0.5)
+                << " ms\n";
+    }
+    std::cout << "  results: " << args.out << "\n";
     if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
   }
   return 0;

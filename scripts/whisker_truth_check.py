@@ -1,0 +1,148 @@
+#!/usr/bin/env python3
+"""Scores sinew-track --whiskers results against sinew-synth --scenario whisker-pad's truth.
+
+Identities: each whisker found on the first frame is matched to the true whisker its curve lies
+nearest (mean distance of its samples to the true centreline; one true whisker per id). Then per
+whisker-frame:
+- curve distance: the mean distance of the tracked curve's samples (every pixel along its nodes'
+  chords) to the true centreline polyline;
+- base distance: tracked follicle (first node) to the true follicle;
+- a swap: the tracked curve lies nearer (by mean distance) another true whisker than its own;
+- good: status "ok" and curve distance <= --max-curve-px.
+
+Prints the figures and exits 1 when any of --require-found, --require-good, --max-base-px or the
+no-swap rule fails (so a test can call it).
+"""
+import argparse
+import json
+import sys
+
+import numpy as np
+
+
+def samples(nodes, step=1.0):
+    pts = np.asarray(nodes, dtype=float)[:, :2]
+    seg = np.diff(pts, axis=0)
+    lengths = np.hypot(seg[:, 0], seg[:, 1])
+    s = np.concatenate([[0.0], np.cumsum(lengths)])
+    t = np.arange(0.0, s[-1] + 1e-9, step)
+    idx = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(seg) - 1)
+    frac = (t - s[idx]) / np.maximum(lengths[idx], 1e-12)
+    return pts[idx] + seg[idx] * frac[:, None]
+
+
+def distance_to_polyline(points, poly):
+    """Distance of each point to the polyline poly (n x 2)."""
+    a = poly[:-1][None, :, :]
+    b = poly[1:][None, :, :]
+    p = points[:, None, :]
+    ab = b - a
+    t = np.clip(np.sum((p - a) * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=2), 1e-12), 0, 1)
+    closest = a + t[:, :, None] * ab
+    return np.min(np.linalg.norm(p - closest, axis=2), axis=1)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--results", required=True)
+    ap.add_argument("--truth", required=True)
+    ap.add_argument("--max-curve-px", type=float, default=0.5)
+    ap.add_argument("--min-length-px", type=float, default=40.0)
+    ap.add_argument("--require-found", action="store_true",
+                    help="every true whisker longer than --min-length-px found on frame 0")
+    ap.add_argument("--require-good", type=float, default=0.0,
+                    help="fraction of whisker-frames that must be good")
+    ap.add_argument("--max-base-px", type=float, default=float("inf"),
+                    help="largest allowed median base distance of a whisker")
+    args = ap.parse_args()
+
+    truth = {}
+    for line in open(args.truth):
+        rec = json.loads(line)
+        truth[rec["frame"]] = {w["id"]: w for w in rec["whiskers"]}
+    results = []
+    for line in open(args.results):
+        rec = json.loads(line)
+        if "frame" in rec:
+            results.append(rec)
+    if not results:
+        sys.exit("no frames in " + args.results)
+
+    first = results[0]
+    t0 = truth[first["frame"]]
+    polys = {k: np.asarray(w["centreline"], dtype=float) for k, w in t0.items()}
+    # Identity match on the first frame (greedy on mean distance).
+    pairs = []
+    for w in first["whiskers"]:
+        pts = samples(w["nodes"])
+        for k, poly in polys.items():
+            pairs.append((float(np.mean(distance_to_polyline(pts, poly))), w["id"], k))
+    pairs.sort()
+    match, used = {}, set()
+    for d, wid, k in pairs:
+        if wid in match or k in used or d > 2.0:
+            continue
+        match[wid] = k
+        used.add(k)
+    long_truth = [k for k, w in t0.items() if w["length_px"] > args.min_length_px]
+    found = [k for k in long_truth if k in used]
+    print(f"frame {first['frame']}: {len(first['whiskers'])} whiskers reported, "
+          f"{len(found)} of {len(long_truth)} true whiskers longer than {args.min_length_px:g} px "
+          f"found; {len(first['whiskers']) - len(match)} reported whiskers match none")
+
+    total = good = swaps = ok = 0
+    curve, base = [], {}
+    worst_swap = None
+    for rec in results:
+        tf = truth[rec["frame"]]
+        tpolys = {k: np.asarray(w["centreline"], dtype=float) for k, w in tf.items()}
+        for w in rec["whiskers"]:
+            if w["id"] not in match:
+                continue
+            k = match[w["id"]]
+            total += 1
+            pts = samples(w["nodes"])
+            d_own = float(np.mean(distance_to_polyline(pts, tpolys[k])))
+            if w["status"] == "ok":
+                ok += 1
+                curve.append(d_own)
+                base.setdefault(w["id"], []).append(
+                    float(np.hypot(*(np.asarray(w["follicle"]) - tf[k]["follicle"]))))
+                good += d_own <= args.max_curve_px
+                others = [float(np.mean(distance_to_polyline(pts, p)))
+                          for j, p in tpolys.items() if j != k]
+                if others and min(others) < d_own:
+                    swaps += 1
+                    worst_swap = worst_swap or (rec["frame"], w["id"])
+    missed = [k for k in truth[first["frame"]] if k not in used]
+    for k in missed:  # a true whisker never found counts as bad on every frame
+        total += len(results)
+    frac_good = good / max(total, 1)
+    base_medians = {i: float(np.median(v)) for i, v in base.items()}
+    print(f"whisker-frames of true whiskers: {total}; ok {ok}; good (ok and within "
+          f"{args.max_curve_px} px) {good} = {100 * frac_good:.1f}%")
+    if curve:
+        print(f"curve distance of ok frames: mean {np.mean(curve):.3f} px, "
+              f"median {np.median(curve):.3f}, p95 {np.percentile(curve, 95):.3f}, "
+              f"max {np.max(curve):.3f}")
+    if base_medians:
+        print("base distance per whisker, median px: " +
+              ", ".join(f"{i}: {v:.2f}" for i, v in sorted(base_medians.items())))
+    print(f"identity swaps: {swaps}" + (f" (first: frame {worst_swap[0]}, id {worst_swap[1]})"
+                                        if worst_swap else ""))
+    failed = []
+    if args.require_found and len(found) < len(long_truth):
+        failed.append("not every whisker found")
+    if frac_good < args.require_good:
+        failed.append(f"good {100 * frac_good:.1f}% < {100 * args.require_good:.1f}%")
+    if swaps:
+        failed.append("identity swaps")
+    if base_medians and max(base_medians.values()) > args.max_base_px:
+        failed.append(f"base distance {max(base_medians.values()):.2f} px > {args.max_base_px}")
+    if failed:
+        print("FAILED: " + "; ".join(failed))
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
