@@ -91,7 +91,7 @@ def main():
           f"found; {len(first['whiskers']) - len(match)} reported whiskers match none")
 
     total = good = swaps = ok = 0
-    curve, base = [], {}
+    curve, base, per_curve = [], {}, {}
     worst_swap = None
     for rec in results:
         tf = truth[rec["frame"]]
@@ -106,6 +106,7 @@ def main():
             if w["status"] == "ok":
                 ok += 1
                 curve.append(d_own)
+                per_curve.setdefault(w["id"], []).append(d_own)
                 base.setdefault(w["id"], []).append(
                     float(np.hypot(*(np.asarray(w["follicle"]) - tf[k]["follicle"]))))
                 good += d_own <= args.max_curve_px
@@ -125,6 +126,9 @@ def main():
         print(f"curve distance of ok frames: mean {np.mean(curve):.3f} px, "
               f"median {np.median(curve):.3f}, p95 {np.percentile(curve, 95):.3f}, "
               f"max {np.max(curve):.3f}")
+    if per_curve:
+        print("curve distance per whisker, mean px (true id): " +
+              ", ".join(f"{i} ({match[i]}): {np.mean(v):.2f}" for i, v in sorted(per_curve.items())))
     if base_medians:
         print("base distance per whisker, median px: " +
               ", ".join(f"{i}: {v:.2f}" for i, v in sorted(base_medians.items())))

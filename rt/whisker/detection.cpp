@@ -110,6 +110,10 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
     }
   }
 
+  // Averaged over a few pixels: along a ridge the contrast adds up and the noise does not (a
+  // faint whisker's tip stays above the noise threshold for longer).
+  cv::GaussianBlur(m.contrast, m.contrast, cv::Size(), o.contrast_smoothing_px);
+
   // Dark regions: heavily smoothed (whiskers vanish), below a fraction of the backlight.
   cv::Mat coarse;
   cv::GaussianBlur(f, coarse, cv::Size(), 4.0);
@@ -178,6 +182,7 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
 
 struct Trace {
   std::vector<Eigen::Vector2d> points;  // in tracing order
+  std::vector<float> contrast;          // at each point (re-centred), per cent
   bool ended_dark = false;              // ran into a dark region (not a free tip)
 };
 
@@ -189,6 +194,7 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
              Eigen::Vector2d t) {
   Trace trace;
   trace.points.push_back(p);
+  trace.contrast.push_back(static_cast<float>(contrast_at(m, p)));
   int gap = 0;
   std::size_t last_strong = 0;
   const int max_steps = 4 * (m.contrast.cols + m.contrast.rows);
@@ -201,6 +207,7 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     if (is_dark(m, q)) {
       // Entering the face (or another dark object): the first dark point ends the trace.
       trace.points.push_back(q);
+      trace.contrast.push_back(0.0f);
       last_strong = trace.points.size() - 1;
       trace.ended_dark = true;
       break;
@@ -235,6 +242,7 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     t = t_new.normalized();
     p = q;
     trace.points.push_back(p);
+    trace.contrast.push_back(static_cast<float>(std::max(best, 0.0)));
     if (gap == 0) last_strong = trace.points.size() - 1;
     // A whisker does not turn by more than 35° over 12 px (radius of curvature ≥ 20 px): a trace
     // that does has left it (noise at a faint tip, a neighbour at a crossing).
@@ -249,6 +257,26 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     }
   }
   trace.points.resize(last_strong + 1);
+  trace.contrast.resize(trace.points.size());
+  // The far end: each point was re-centred on the best of 13 contrasts across the ridge, so noise
+  // beyond a faint tip passes the threshold now and then; the tip is the last point whose
+  // contrast, averaged over ±4 points, still does (a dark end keeps its face point).
+  if (!trace.ended_dark) {
+    constexpr int kHalf = 4;
+    const int np = static_cast<int>(trace.points.size());
+    int tip = np - 1;
+    while (tip > 0) {
+      double sum = 0.0;
+      int count = 0;
+      for (int j = std::max(0, tip - kHalf); j <= std::min(np - 1, tip + kHalf); ++j) {
+        sum += trace.contrast[j];
+        ++count;
+      }
+      if (sum / count >= m.follow) break;
+      --tip;
+    }
+    trace.points.resize(tip + 1);
+  }
   return trace;
 }
 

@@ -33,19 +33,21 @@ struct WhiskerDetectionOptions {
   double smoothing_px = 1.0;
   /// Scale of the Hessian that gives the ridge direction, pixels, > 0.
   double orientation_scale_px = 1.5;
+  /// Gaussian smoothing of the ridge-contrast map, pixels, ≥ 0.
+  double contrast_smoothing_px = 1.5;
   /// Distance of the side samples from the ridge centre, pixels, ≥ 1.
   int surround_px = 3;
   /// A seed's ridge contrast, per cent of the backlight, > 0.
-  double seed_contrast = 3.0;
+  double seed_contrast = 1.0;
   /// A trace is a whisker only if its median contrast is at most this (per cent): a backlit hair
   /// is faint, a rod of the apparatus is not (shared whisker video, frame 0: whiskers 2–9 %, the
   /// apparatus' rods 22–25 %).
   double max_contrast = 20.0;
   /// Tracing goes on while the contrast (per cent) is at least this, > 0.
-  double follow_contrast = 1.2;
+  double follow_contrast = 0.5;
   /// The thresholds above are raised to these multiples of the contrast map's own noise (its
   /// robust σ over the backlight), so that noise is neither seeded nor followed, ≥ 0.
-  double seed_noise_factor = 5.0;
+  double seed_noise_factor = 4.0;
   double follow_noise_factor = 2.5;
   /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
   int max_gap_px = 12;

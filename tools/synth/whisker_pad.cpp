@@ -27,11 +27,11 @@ constexpr double kPortGrey = 35.0;
 
 struct Whisker {
   double length = 0.0;
-  double kappa0 = 0.0;         // curvature at the base, 1/px (falls to half at the tip)
-  double phi = 0.0;            // ellipse parameter of the follicle
-  double fan = 0.0;            // rest angle from the face's normal, rad
-  double contrast = 0.0;       // darkening at the base, grey levels
-  Eigen::Matrix2Xd local;      // rest shape, follicle at 0, leaving along +x
+  double kappa0 = 0.0;     // curvature at the base, 1/px (falls to half at the tip)
+  double phi = 0.0;        // ellipse parameter of the follicle
+  double fan = 0.0;        // rest angle from the face's normal, rad
+  double contrast = 0.0;   // darkening at the base, grey levels
+  Eigen::Matrix2Xd local;  // rest shape, follicle at 0, leaving along +x
 };
 
 // Rigid motion of the head at a frame: x ↦ R x + t about the face centre.
@@ -116,7 +116,9 @@ Eigen::Matrix2Xd placed(const WhiskerPadOptions& o, const Scene& sc, int frame, 
   return x;
 }
 
-double half_width(double s, double length) { return 0.5 * (3.0 - 2.0 * s / length); }
+double half_width(double s, double length) {
+  return 0.5 * (3.0 - 2.0 * s / length);
+}
 
 Scene build_scene(const WhiskerPadOptions& o) {
   Scene sc;
@@ -135,8 +137,8 @@ Scene build_scene(const WhiskerPadOptions& o) {
     if (k == 3) w.kappa0 = -5.0e-3 / sc.scale;
     w.fan = (k - 0.5 * (n - 1)) * 2.0 * M_PI / 180.0;
     const int rank = (3 * k) % n;  // the faint ones are spread over the pad
-    w.contrast = o.contrast_min + (n > 1 ? (o.contrast_max - o.contrast_min) * rank / (n - 1.0)
-                                         : 0.0);
+    w.contrast =
+        o.contrast_min + (n > 1 ? (o.contrast_max - o.contrast_min) * rank / (n - 1.0) : 0.0);
     w.local = rest_shape(w.length, w.kappa0);
     sc.whiskers.push_back(w);
   }
@@ -152,9 +154,8 @@ Scene build_scene(const WhiskerPadOptions& o) {
     const double a = normal_angle(sc, w) + w.fan + 0.5 * 10.0 * M_PI / 180.0;
     const Eigen::Vector2d f = follicle_in_head(sc, w);
     const Eigen::Vector2d p = w.local.col(c);
-    const Eigen::Vector2d x =
-        f + Eigen::Vector2d(std::cos(a) * p.x() - std::sin(a) * p.y(),
-                            std::sin(a) * p.x() + std::cos(a) * p.y());
+    const Eigen::Vector2d x = f + Eigen::Vector2d(std::cos(a) * p.x() - std::sin(a) * p.y(),
+                                                  std::sin(a) * p.x() + std::cos(a) * p.y());
     const Eigen::Vector2d r = x - f;
     const Eigen::Vector2d sweep = Eigen::Vector2d(-r.y(), r.x()).normalized();
     sc.pole = x + (sc.pole_radius + half_width(s_c, w.length)) * sweep;
@@ -267,7 +268,9 @@ void draw_whisker(cv::Mat& dark, const Eigen::Matrix2Xd& x, double length, doubl
   }
 }
 
-nlohmann::json xy(const Eigen::Vector2d& p) { return {p.x(), p.y()}; }
+nlohmann::json xy(const Eigen::Vector2d& p) {
+  return {p.x(), p.y()};
+}
 
 }  // namespace
 
@@ -286,8 +289,8 @@ void write_whisker_pad(const WhiskerPadOptions& o, const std::string& out_dir) {
   cv::Mat backlight(o.height, o.width, CV_32F);
   for (int y = 0; y < o.height; ++y) {
     for (int x = 0; x < o.width; ++x) {
-      backlight.at<float>(y, x) = static_cast<float>(140.0 + 50.0 * x / o.width +
-                                                     15.0 * std::sin(M_PI * y / o.height));
+      backlight.at<float>(y, x) =
+          static_cast<float>(140.0 + 50.0 * x / o.width + 15.0 * std::sin(M_PI * y / o.height));
     }
   }
   cv::RNG rng(o.seed);

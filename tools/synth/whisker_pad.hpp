@@ -27,14 +27,14 @@ struct WhiskerPadOptions {
   int width = 640;
   int height = 480;
   int whiskers = 8;
-  double noise = 4.0;           ///< σ of the Gaussian noise, grey levels
-  double contrast_min = 5.0;    ///< base contrast of the faintest whisker, grey levels
-  double contrast_max = 20.0;   ///< of the darkest
-  double whisk_hz = 10.0;       ///< base-angle oscillation
-  double fps = 500.0;           ///< camera frame rate
-  bool face_motion = false;     ///< the head translates and rotates
-  bool pole = true;             ///< a pole the last whisker presses against
-  bool lick_port = true;        ///< a dark static object away from the whiskers
+  double noise = 4.0;          ///< σ of the Gaussian noise, grey levels
+  double contrast_min = 5.0;   ///< base contrast of the faintest whisker, grey levels
+  double contrast_max = 20.0;  ///< of the darkest
+  double whisk_hz = 10.0;      ///< base-angle oscillation
+  double fps = 500.0;          ///< camera frame rate
+  bool face_motion = false;    ///< the head translates and rotates
+  bool pole = true;            ///< a pole the last whisker presses against
+  bool lick_port = true;       ///< a dark static object away from the whiskers
   std::uint64_t seed = 1;
 };
 
