@@ -110,9 +110,31 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
     }
   }
 
-  // Averaged over a few pixels: along a ridge the contrast adds up and the noise does not (a
-  // faint whisker's tip stays above the noise threshold for longer).
-  cv::GaussianBlur(m.contrast, m.contrast, cv::Size(), o.contrast_smoothing_px);
+  // Averaged along the ridge (its Hessian tangent, ±contrast_averaging_px): along a whisker the
+  // contrast adds up and the noise does not, so a faint tip stays above the noise threshold for
+  // longer; across, the peak stays as sharp as it was.
+  if (o.contrast_averaging_px > 0) {
+    cv::Mat raw = m.contrast.clone();
+    const int reach = o.contrast_averaging_px;
+    for (int y = 0; y < f.rows; ++y) {
+      for (int x = 0; x < f.cols; ++x) {
+        const double tx = -m.ny.at<float>(y, x), ty = m.nx.at<float>(y, x);
+        double sum = 0.0;
+        int count = 0;
+        for (int k = -reach; k <= reach; ++k) {
+          float v;
+          if (sample(raw, x + k * tx, y + k * ty, &v)) {
+            sum += v;
+            ++count;
+          }
+        }
+        m.contrast.at<float>(y, x) = static_cast<float>(sum / std::max(count, 1));
+      }
+    }
+  }
+  if (o.contrast_smoothing_px > 0.0) {
+    cv::GaussianBlur(m.contrast, m.contrast, cv::Size(), o.contrast_smoothing_px);
+  }
 
   // Dark regions: heavily smoothed (whiskers vanish), below a fraction of the backlight.
   cv::Mat coarse;
@@ -288,6 +310,33 @@ float median_contrast(const Maps& m, const std::vector<Eigen::Vector2d>& points)
   return contrasts[contrasts.size() / 2];
 }
 
+// Moves the last point of a trace that ended in the face to the face's edge: the steepest fall of
+// the lightly smoothed image along the trace's last direction, within 5 px of it.
+void refine_follicle(const Maps& m, std::vector<Eigen::Vector2d>* points) {
+  const Eigen::Vector2d end = points->back();
+  const Eigen::Vector2d dir = (end - (*points)[points->size() - 2]).normalized();
+  double best = 0.0, best_s = 0.0;
+  for (int k = -20; k <= 20; ++k) {
+    const double s = 0.25 * k;
+    float a = 0.0f, b = 0.0f;
+    const Eigen::Vector2d p = end + s * dir;
+    if (!sample(m.smooth, p.x() - 0.5 * dir.x(), p.y() - 0.5 * dir.y(), &a) ||
+        !sample(m.smooth, p.x() + 0.5 * dir.x(), p.y() + 0.5 * dir.y(), &b)) {
+      continue;
+    }
+    if (a - b > best) {
+      best = a - b;
+      best_s = s;
+    }
+  }
+  // Points past the edge are dropped; the edge becomes the last point.
+  const Eigen::Vector2d edge = end + best_s * dir;
+  while (points->size() > 1 && ((*points)[points->size() - 2] - edge).dot(dir) >= 0.0) {
+    points->pop_back();
+  }
+  points->back() = edge;
+}
+
 // Median contrast of the last 10 points of a trace (its far end).
 float end_contrast(const Maps& m, const std::vector<Eigen::Vector2d>& points) {
   const std::size_t k = std::min<std::size_t>(points.size(), 10);
@@ -417,7 +466,10 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     } else if (da < db) {
       std::swap(a, b);
     }
-    // b ends at the face, a at the tip.
+    // b ends at the face, a at the tip. The trace stopped at the first point of the dark mask,
+    // which its heavy smoothing puts ~2 px inside the face: the follicle is where the intensity
+    // falls fastest along the whisker there (the face's edge).
+    if (b.ended_dark && b.points.size() >= 2) refine_follicle(m, &b.points);
     DetectedWhisker w;
     for (std::size_t i = b.points.size(); i-- > 1;) w.points.push_back(b.points[i]);
     w.points.insert(w.points.end(), a.points.begin(), a.points.end());
@@ -429,7 +481,8 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     for (const auto& p : w.points) farthest = std::max(farthest, face_distance(m, p));
     // A whisker starts at the face and leaves it; a thin structure of the apparatus, far darker
     // than a backlit hair, is not one.
-    const bool starts_at_face = face_distance(m, w.follicle) <= 2.0;
+    // The mask lies ~2 px inside the edge the follicle was refined to.
+    const bool starts_at_face = face_distance(m, w.follicle) <= 4.0;
     const bool leaves = farthest >= o.pad_band_px;
     const bool rod = w.contrast_percent > o.max_contrast;
     if (starts_at_face && leaves && !rod && w.length_px >= o.min_length_px) {

@@ -33,8 +33,10 @@ struct WhiskerDetectionOptions {
   double smoothing_px = 1.0;
   /// Scale of the Hessian that gives the ridge direction, pixels, > 0.
   double orientation_scale_px = 1.5;
-  /// Gaussian smoothing of the ridge-contrast map, pixels, ≥ 0.
-  double contrast_smoothing_px = 1.5;
+  /// The ridge contrast is averaged along the ridge over ±this many pixels, ≥ 0.
+  int contrast_averaging_px = 3;
+  /// ... and then smoothed by a Gaussian of this σ, pixels, ≥ 0 (0: not smoothed).
+  double contrast_smoothing_px = 1.0;
   /// Distance of the side samples from the ridge centre, pixels, ≥ 1.
   int surround_px = 3;
   /// A seed's ridge contrast, per cent of the backlight, > 0.

@@ -45,7 +45,7 @@ TrackerOptions WhiskerTrackerOptions::default_tracker_options() {
   t.observation = ObservationMode::kDarkRidge;
   t.start_end = StartEnd::kDarkRegion;
   // Per cent of the local backlight: a 5-grey-level whisker on a 150 backlight is 3.3 %.
-  t.min_strength = 2.0;
+  t.min_strength = 1.2;
   // Five pixel rows along the whisker: noise ÷ √5 on a ridge one or two pixels wide.
   t.band_px = 2;
   t.line_surround_px = 3;
