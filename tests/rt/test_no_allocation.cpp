@@ -12,9 +12,11 @@
 
 #include "common/beam/static_solver.hpp"
 #include "rt/tracker.hpp"
+#include "rt/whisker/whisker_tracker.hpp"
 // The one translation unit of this executable that includes it: malloc and operator new hooks.
 #include "tests/support/allocation_counter.hpp"
 #include "tests/support/beam_render.hpp"
+#include "tests/support/whisker_render.hpp"
 
 namespace sinew::rt {
 namespace {
@@ -166,6 +168,62 @@ TEST(NoAllocation, NonConvergingFramesAndSnake) {
   EXPECT_EQ(s.mallocs, 0);
   EXPECT_EQ(s.news, 0);
   EXPECT_GT(s.ok + s.not_converged, 100);
+}
+
+// Ten whiskers on a 640 x 480 frame, whisking, with frames where half of them are gone (lost,
+// discarded fits): WhiskerTracker::track() allocates nothing either.
+TEST(NoAllocation, TenWhiskers) {
+  if (!sinew::testing::allocation_counting_available())
+    GTEST_SKIP() << sinew::testing::kAllocationCountingUnavailable;
+  const Eigen::Vector2d centre(-80.0, 240.0);
+  const double radius = 220.0;
+  auto whiskers_at = [&](double rotation) {
+    std::vector<sinew::testing::SceneWhisker> ws;
+    for (int k = 0; k < 10; ++k) {
+      sinew::testing::SceneWhisker w;
+      const double phi = -0.6 + 0.12 * k;
+      w.follicle = centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi));
+      w.angle = phi + 0.2 + rotation;
+      w.kappa = 1.0 / 500.0;
+      w.length = 150.0 + 5.0 * k;
+      w.contrast = 6.0 + k;
+      ws.push_back(w);
+    }
+    return ws;
+  };
+  std::vector<GreyImage> frames;
+  std::mt19937 gen(5);
+  for (int f = 0; f < 25; ++f) {
+    GreyImage img = sinew::testing::backlit_face(640, 480, centre, radius);
+    const auto ws = whiskers_at(0.15 * std::sin(2.0 * M_PI * f / 25.0));
+    for (std::size_t k = 0; k < ws.size(); ++k) {
+      if (f < 20 || k % 2 == 0) sinew::testing::draw_whisker(img, ws[k]);  // 20..24: half gone
+    }
+    sinew::testing::add_noise(img, 4.0, gen);
+    frames.push_back(std::move(img));
+  }
+  std::vector<std::vector<Eigen::Vector2d>> init;
+  for (const auto& w : whiskers_at(0.0)) init.push_back(w.points());
+  WhiskerTracker tracker(init);
+  ASSERT_TRUE(tracker.valid()) << tracker.error();
+  tracker.track(frames[0].view());
+  Eigen::internal::set_is_malloc_allowed(false);
+  sinew::testing::AllocationCounter counter;
+  int ok = 0, lost = 0;
+  for (int k = 1; k < 300; ++k) {
+    tracker.track(frames[k % 25].view());
+    for (int w = 0; w < tracker.num_whiskers(); ++w) {
+      ok += tracker.result(w).status == FrameStatus::kOk;
+      lost += tracker.result(w).status == FrameStatus::kLost;
+    }
+  }
+  counter.stop();
+  Eigen::internal::set_is_malloc_allowed(true);
+  EXPECT_EQ(counter.mallocs(), 0);
+  EXPECT_EQ(counter.news(), 0);
+  SCOPED_TRACE("ok " + std::to_string(ok) + " lost " + std::to_string(lost));
+  EXPECT_GT(ok, 2000);
+  EXPECT_GT(lost, 50);
 }
 
 TEST(NoAllocation, CountersSeeAllocations) {

@@ -144,8 +144,7 @@ TEST(WhiskerDetection, BadOptionsAndNoFaceAreErrors) {
   o = WhiskerDetectionOptions{};
   o.face = FaceSide::kRight;  // the face is at the left; nothing dark touches the right border
   const WhiskerDetection d = detect_whiskers(s.image.view(), o);
-  EXPECT_NE(d.error.find("no dark region touches the right border"), std::string::npos)
-      << d.error;
+  EXPECT_NE(d.error.find("no dark region touches the right border"), std::string::npos) << d.error;
 }
 
 TEST(WhiskerTracker, TracksWhiskingWhiskersToTheTruthWithTheirFollicles) {

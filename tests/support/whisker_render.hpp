@@ -70,8 +70,7 @@ inline void draw_whisker(GreyImage& img, const SceneWhisker& w) {
     const double c = w.contrast * (1.0 - 0.6 * s / w.length);
     const Eigen::Vector2d& p = pts[i];
     for (int y = std::max(0, int(p.y() - 3)); y <= std::min(img.height - 1, int(p.y() + 3)); ++y) {
-      for (int x = std::max(0, int(p.x() - 3)); x <= std::min(img.width - 1, int(p.x() + 3));
-           ++x) {
+      for (int x = std::max(0, int(p.x() - 3)); x <= std::min(img.width - 1, int(p.x() + 3)); ++x) {
         const double cover = std::clamp(hw + 0.5 - std::hypot(x - p.x(), y - p.y()), 0.0, 1.0);
         float& d = dark[std::size_t(y) * img.width + x];
         d = std::max(d, static_cast<float>(c * cover));
