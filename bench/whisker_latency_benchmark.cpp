@@ -86,7 +86,8 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
     const auto d0 = std::chrono::steady_clock::now();
     rt::WhiskerDetectionOptions detect_options;
     detect_options.face = rt::FaceSide::kLeft;
-    const rt::WhiskerDetection detection = rt::detect_whiskers(seq.frames[0].view(), detect_options);
+    const rt::WhiskerDetection detection =
+        rt::detect_whiskers(seq.frames[0].view(), detect_options);
     detect_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - d0).count();
     found = static_cast<long>(detection.whiskers.size());

@@ -41,10 +41,11 @@ struct WhiskerDetectionOptions {
   int surround_px = 3;
   /// A seed's ridge contrast, per cent of the backlight, > 0.
   double seed_contrast = 1.0;
-  /// A trace is a whisker only if its median contrast is at most this (per cent): a backlit hair
-  /// is faint, a rod of the apparatus is not (shared whisker video, frame 0: whiskers 2–9 %, the
-  /// apparatus' rods 22–25 %).
-  double max_contrast = 20.0;
+  /// A trace is a whisker only if its median contrast is at most this (per cent, in the
+  /// averaged map): a backlit hair is faint, a rod of the apparatus is not. Shared whisker video,
+  /// frame 0: whiskers 1.7–4.7 %, the apparatus' rods and edges 9.3–13.5 %; rendered pads (5–20
+  /// grey levels at the follicle): 1.1–3.0 %.
+  double max_contrast = 7.0;
   /// Tracing goes on while the contrast (per cent) is at least this, > 0.
   double follow_contrast = 0.5;
   /// The thresholds above are raised to these multiples of the contrast map's own noise (its
