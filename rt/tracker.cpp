@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "rt/centreline.hpp"
+#include "rt/detail/field_error.hpp"
 #include "rt/detail/order_statistic.hpp"
 
 namespace sinew::rt {
@@ -16,9 +17,7 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 std::string field_error(const char* name, double value, const char* constraint) {
-  std::ostringstream s;
-  s << "options." << name << " = " << value << " " << constraint;
-  return s.str();
+  return detail::field_error("options.", name, value, constraint);
 }
 
 // The verification model: the tracked beam itself when its fixed dofs constrain rigid motion,
@@ -347,19 +346,20 @@ void Tracker::restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes) noexce
   }
   u_prev1_ = u_;
   u_prev2_ = u_;
-  previous_lost_ = true;
-  last_accepted_ = false;
-  verify_have_previous_ = false;
-  last_miss_px_ = std::numeric_limits<double>::infinity();
+  continue_as_after_a_lost_frame();
 }
 
 void Tracker::reject_last_frame() noexcept {
   if (!last_accepted_) return;
-  last_accepted_ = false;
   // After an accepted frame u_prev1_ = u_ and u_prev2_ holds the frame before.
   u_ = u_prev2_;
   u_prev1_ = u_prev2_;
+  continue_as_after_a_lost_frame();
+}
+
+void Tracker::continue_as_after_a_lost_frame() noexcept {
   previous_lost_ = true;
+  last_accepted_ = false;
   verify_have_previous_ = false;
   last_miss_px_ = std::numeric_limits<double>::infinity();
 }

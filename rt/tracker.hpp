@@ -251,6 +251,8 @@ class Tracker {
     double xi = 0.0;
   };
 
+  // No velocity, no verification warm start, a wide search next (restart_at, reject_last_frame).
+  void continue_as_after_a_lost_frame() noexcept;
   // points_ = the model curve at every sample point at u_: each element's rotations are evaluated
   // once (not once per search line), and the two boundaries of a sample share their point.
   void evaluate_points(bool jacobians = true);

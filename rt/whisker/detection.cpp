@@ -1,5 +1,7 @@
 #include "rt/whisker/detection.hpp"
 
+#include "rt/detail/field_error.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
@@ -10,8 +12,7 @@ namespace sinew::rt {
 namespace {
 
 std::string field_error(const char* field, double value, const char* constraint) {
-  return std::string("whisker detection: ") + field + " = " + std::to_string(value) + " " +
-         constraint;
+  return detail::field_error("whisker detection: ", field, value, constraint);
 }
 
 // Bilinear read of a float map; false outside.

@@ -1,5 +1,7 @@
 #include "rt/whisker/whisker_tracker.hpp"
 
+#include "rt/detail/field_error.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -9,8 +11,7 @@ namespace sinew::rt {
 namespace {
 
 std::string field_error(const char* field, double value, const char* constraint) {
-  return std::string("whisker tracker: ") + field + " = " + std::to_string(value) + " " +
-         constraint;
+  return detail::field_error("whisker tracker: ", field, value, constraint);
 }
 
 // Squared distance from p to segment ab.

@@ -22,6 +22,7 @@
 #include "rt/tracker.hpp"
 #include "tools/io/beam_json.hpp"
 #include "tools/track/frame_source.hpp"
+#include "tools/track/overlay_sink.hpp"
 #include "tools/track/whiskers.hpp"
 
 namespace {
@@ -227,14 +228,6 @@ nlohmann::json rows3(const Eigen::VectorXd& v, int n) {
   return a;
 }
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t k =
-      std::min(v.size() - 1, static_cast<std::size_t>(std::floor(q * (v.size() - 1) + 0.5)));
-  return v[k];
-}
-
 struct Args {
   std::string input, init, out, overlay, model = "beam", truth;
   int stride = 1, first = 0, count = -1;
@@ -276,12 +269,7 @@ int run(const Args& args) {
 
   std::ofstream out(args.out + ".tmp");
   if (!out) throw tools::InputError(args.out + ": cannot open file for writing");
-  cv::VideoWriter video;
-  const bool overlay_video =
-      !args.overlay.empty() &&
-      (args.overlay.size() > 4 && (args.overlay.substr(args.overlay.size() - 4) == ".mp4" ||
-                                   args.overlay.substr(args.overlay.size() - 4) == ".avi"));
-  if (!args.overlay.empty() && !overlay_video) std::filesystem::create_directories(args.overlay);
+  tools::OverlaySink overlay(args.overlay);
 
   std::vector<double> latencies, errors, load_errors, large_load_errors, stabilise_ms;
   Eigen::VectorXd forces_at_since;  // the reported forces on frame --forces-since
@@ -419,27 +407,15 @@ int run(const Args& args) {
       std::printf("\n");
     }
 
-    if (!args.overlay.empty()) {
+    if (overlay.enabled()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
       draw_overlay(colour, tracker, s, index);
-      if (overlay_video) {
-        if (!video.isOpened()) {
-          video.open(args.overlay, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 30.0,
-                     colour.size());
-          if (!video.isOpened())
-            throw tools::InputError(args.overlay + ": cannot write a video here");
-        }
-        video.write(colour);
-      } else {
-        char name[64];
-        std::snprintf(name, sizeof name, "/overlay_%05d.png", index);
-        cv::imwrite(args.overlay + name, colour);
-      }
+      overlay.write(colour, index);
     }
     ++processed;
     if (!args.quiet && processed % 50 == 0) {
       std::cerr << "sinew-track: " << processed << " frames, last " << rt::to_string(s.status)
-                << ", median latency " << percentile(latencies, 0.5) << " us\n";
+                << ", median latency " << tools::percentile(latencies, 0.5) << " us\n";
     }
   }
   out.close();
@@ -454,12 +430,12 @@ int run(const Args& args) {
               << (init.options.model == rt::TrackerModel::kBeam ? "beam" : "snake") << " model)\n";
     std::cout << "  status:";
     for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
-    std::cout << "\n  latency per frame: median " << percentile(latencies, 0.5) << " us, p99 "
-              << percentile(latencies, 0.99) << " us\n";
+    std::cout << "\n  latency per frame: median " << tools::percentile(latencies, 0.5)
+              << " us, p99 " << tools::percentile(latencies, 0.99) << " us\n";
     if (!stabilise_ms.empty()) {
       std::cout << "  stabilisation (ECC homography + warp, outside the tracker): median "
-                << percentile(stabilise_ms, 0.5) << " ms, p99 " << percentile(stabilise_ms, 0.99)
-                << " ms\n";
+                << tools::percentile(stabilise_ms, 0.5) << " ms, p99 "
+                << tools::percentile(stabilise_ms, 0.99) << " ms\n";
     }
     if (!errors.empty()) {
       double mean = 0.0;
@@ -471,7 +447,7 @@ int run(const Args& args) {
       std::cout << "  snake baseline (seed 000 §5.2, stretch " << snake_options.snake_stretch_weight
                 << ", bend " << snake_options.snake_bend_weight << "):";
       for (const auto& [k, v] : snake_statuses) std::cout << " " << k << " " << v;
-      std::cout << ", median latency " << percentile(snake_latencies, 0.5) << " us";
+      std::cout << ", median latency " << tools::percentile(snake_latencies, 0.5) << " us";
       if (!snake_errors.empty()) {
         double mean = 0.0;
         for (double e : snake_errors) mean += e;
@@ -481,8 +457,9 @@ int run(const Args& args) {
       std::cout << "\n";
     }
     if (!load_errors.empty()) {
-      std::cout << "  fitted load error vs truth: median " << percentile(load_errors, 0.5) * 100
-                << " %, max " << *std::max_element(load_errors.begin(), load_errors.end()) * 100
+      std::cout << "  fitted load error vs truth: median "
+                << tools::percentile(load_errors, 0.5) * 100 << " %, max "
+                << *std::max_element(load_errors.begin(), load_errors.end()) * 100
                 << " % (relative errors of tiny loads are large)";
       if (!large_load_errors.empty()) {
         std::cout << "; frames with lambda >= 1: max "

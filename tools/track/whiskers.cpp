@@ -16,6 +16,7 @@
 #include "rt/whisker/whisker_tracker.hpp"
 #include "tools/io/json_file.hpp"
 #include "tools/track/frame_source.hpp"
+#include "tools/track/overlay_sink.hpp"
 
 namespace sinew::tools {
 
@@ -28,14 +29,6 @@ rt::FaceSide parse_face(const std::string& face) {
   if (face == "top") return rt::FaceSide::kTop;
   if (face == "bottom") return rt::FaceSide::kBottom;
   throw InputError("--face = \"" + face + "\" must be auto, left, right, top or bottom");
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t k =
-      std::min(v.size() - 1, static_cast<std::size_t>(std::floor(q * (v.size() - 1) + 0.5)));
-  return v[k];
 }
 
 // A colour per identity (golden-ratio hues), so a whisker keeps its colour through the video.
@@ -86,11 +79,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
 
   std::ofstream out(args.out + ".tmp");
   if (!out) throw InputError(args.out + ": cannot open file for writing");
-  const bool overlay_video =
-      args.overlay.size() > 4 && (args.overlay.substr(args.overlay.size() - 4) == ".mp4" ||
-                                  args.overlay.substr(args.overlay.size() - 4) == ".avi");
-  if (!args.overlay.empty() && !overlay_video) std::filesystem::create_directories(args.overlay);
-  cv::VideoWriter video;
+  OverlaySink overlay(args.overlay);
 
   std::optional<rt::WhiskerTracker> tracker;
   std::vector<double> latencies, reacquire_times;
@@ -183,21 +172,10 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     line["whiskers"] = whiskers;
     out << line.dump() << "\n";
 
-    if (!args.overlay.empty()) {
+    if (overlay.enabled()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
       draw_whiskers(colour, *tracker, index);
-      if (overlay_video) {
-        if (!video.isOpened()) {
-          video.open(args.overlay, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 30.0,
-                     colour.size());
-          if (!video.isOpened()) throw InputError(args.overlay + ": cannot write a video here");
-        }
-        video.write(colour);
-      } else {
-        char name[64];
-        std::snprintf(name, sizeof name, "/overlay_%05d.png", index);
-        cv::imwrite(args.overlay + name, colour);
-      }
+      overlay.write(colour, index);
     }
     ++processed;
     if (!args.quiet && processed % 100 == 0) {
