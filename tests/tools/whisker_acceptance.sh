@@ -21,8 +21,8 @@ case "$case" in
     # Measured: still face 97.6 % good (ok and within 0.5 px of the true curve), moving face
     # 93.4 %; every whisker found, no swap; follicles (median per whisker) within 0.45 px but the
     # faintest whisker's (5 grey levels), 1.6 px.
-    good=0.97 base=2.0
-    if [ "$case" = moving ]; then good=0.92; fi
+    good=0.95 base=2.0
+    if [ "$case" = moving ]; then good=0.90; fi
     "$py" "$src/scripts/whisker_truth_check.py" --results "$work/results.jsonl" \
       --truth "$work/pad/truth.jsonl" --require-found --require-good "$good" --max-base-px "$base"
     ;;
@@ -34,10 +34,12 @@ case "$case" in
     fi
     "$bin/sinew-track" --input "$video" --whiskers --face left --out "$work/results.jsonl" \
       --overlay "$work/overlay.mp4"
-    # Never on the pole; the on-ridge fraction is what this video gives today (see
-    # docs/tracker.md), asserted so that it cannot silently fall.
+    # Never on the pole. The on-ridge fraction of tracked whisker-frames is 92.6 % here and 77.7 %
+    # when OpenCV's AVX2 paths are off (OPENCV_CPU_DISABLE=AVX2,FMA3, as on an older CPU): the
+    # detection's filters round differently and the tracking of this hard video diverges from
+    # there. The bound covers both, so that the test does not flip with the machine.
     "$py" "$src/scripts/whisker_check.py" --video "$video" --results "$work/results.jsonl" \
-      --require 0.60
+      --require 0.70
     ;;
   *)
     echo "unknown case $case" >&2

@@ -13,7 +13,8 @@ namespace sinew::tools {
 OverlaySink::OverlaySink(std::string target) : target_(std::move(target)) {
   const auto ends_with = [&](const char* suffix) {
     const std::string s(suffix);
-    return target_.size() > s.size() && target_.compare(target_.size() - s.size(), s.size(), s) == 0;
+    return target_.size() > s.size() &&
+           target_.compare(target_.size() - s.size(), s.size(), s) == 0;
   };
   video_file_ = ends_with(".mp4") || ends_with(".avi");
   if (enabled() && !video_file_) std::filesystem::create_directories(target_);
