@@ -63,19 +63,19 @@ class BoundaryClosestPoint final : public ClosestSurfacePoint {
  public:
   /// surface must outlive this object.
   explicit BoundaryClosestPoint(SurfaceClosestPoint& surface) : surface_(&surface) {}
-  void update(const Eigen::Ref<const Eigen::VectorXd>& x) override {
-    surface_->update(x);
-    x_ = x;
-  }
+  void update(const Eigen::Ref<const Eigen::VectorXd>& x) override;
   EmbeddedPoint closest(const Eigen::Vector3d& query) const override {
     return surface_->query(query).embedded;
   }
-  /// The normal of the boundary face holding the closest point.
+  /// The surface normal at the closest point, independent of which face holding it the tree
+  /// returned: off the surface the distance's gradient (query − point)/distance, on it the mean
+  /// normal of the faces holding the point (the face's own inside a face).
   Eigen::Vector3d normal(const Eigen::Vector3d& query) const override;
 
  private:
   SurfaceClosestPoint* surface_;
-  Eigen::VectorXd x_;  // positions of the last update
+  Eigen::VectorXd x_;                                    // positions of the last update
+  std::vector<std::vector<Eigen::Index>> vertex_faces_;  // boundary faces around each vertex
 };
 
 enum class RegistrationStage {
