@@ -4,8 +4,8 @@
 // surface vertices) lie on the bent beam stretched 2x in y. Recovered as sinew-register runs it
 // (10 point-to-plane ICP iterations first): markers met to 0.7 µm, middle cross-section 2.006x
 // wide in y and 1.003x in z, Fp in the middle third with mean principal stretches 2.00 along y and
-// 1.03 across, the surface within 0.88% of the diagonal of the target. Material still slides along
-// the axis (see the comments). A finer mesh checks the projected line search.
+// 1.03 across, the surface within 0.95% of the diagonal of the target. Material still slides along
+// the axis (see the comments). A finer mesh with markers on the sides only is checked too.
 // (b) Fig. 2: the "FEM static" baseline (the template deformed purely elastically, s = identity,
 // under a stiff point spring) makes a spike at the constrained point (ratio 5.1), while the
 // plastic-strain registration with the same point as a landmark spreads it (ratio 1.14); ratio =
@@ -275,7 +275,8 @@ GaussNewtonSummary check_fig4(int refine, bool end_face_markers, const GaussNewt
 
 // Fig. 4 as sinew-register runs it (10 point-to-plane ICP iterations first, its default). Measured:
 // markers met to 0.7 µm, middle section 2.006x in y and 1.003x across, Fp stretch 2.00 along y,
-// the surface within 0.88% of the diagonal of the target (2.8 mm). With the paper's point-to-point
+// the surface within 0.95% of the diagonal of the target (0.88% before the tie-independent ICP
+// normals). With the paper's point-to-point
 // ICP throughout (the library default): 2.4%. Before the end faces carried markers: 5.3% (sides
 // alone 1.0%).
 TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
@@ -284,18 +285,19 @@ TEST(PaperFigures, Fig4BentAndTransverselyStretchedBeamIsRecovered) {
   check_fig4(1, true, options, 0.015);
 }
 
-// The same beam at 5,184 tets with markers on the sides only (82). In the first point-to-plane ICP
-// iteration 1,412 tets hit the Fp eigenvalue floor and Φ rises at every η along the clamped step;
-// the projected-path search (GaussNewtonOptions::projected_search_fallback) finds the decrease.
-// Measured: markers met to 0.5 µm, surface within 1.95% of the diagonal (6.2 mm; the worst at the
-// unmarked end faces); without the fallback the stage ended 7.9 mm off its markers, 7.6% of the
-// diagonal off the target. (With the end faces marked too, 97 markers, no search needs it: 1.37%.)
-TEST(PaperFigures, Fig4OnAFinerMeshNeedsTheProjectedSearch) {
+// The same beam at 5,184 tets with markers on the sides only (82). Measured on every OpenBLAS core
+// type (Cooperlake, SkylakeX, Haswell, Sandybridge) and on 1 and 2 threads, identically: markers
+// met to 0.13 µm, middle section 2.04x in y and 1.01x across, the surface within 6.30% of the
+// diagonal (the worst at the unmarked end faces). This test used to assert 3% (measured 1.95%) and
+// that the projected-path search was needed; both held only on machines whose rounding made the
+// AABB tree return one particular face for closest points on edges, whose normal then steered the
+// point-to-plane ICP stage (AVX-512 kernels: 14.8%, line-search-failed). With the normal a function
+// of the closest point alone (BoundaryClosestPoint::normal) the run no longer depends on the
+// machine, and it ends at 6.30%. (With the end faces marked too, 97 markers: 1.37% before.)
+TEST(PaperFigures, Fig4OnAFinerMeshWithSideMarkersOnly) {
   GaussNewtonOptions options;
   options.icp_point_to_plane_iterations = 10;
-  const GaussNewtonSummary summary = check_fig4(2, false, options, 0.03);
-  EXPECT_TRUE(std::any_of(summary.iterations.begin(), summary.iterations.end(),
-                          [](const GaussNewtonIteration& it) { return it.projected_search; }));
+  check_fig4(2, false, options, 0.07);
 }
 
 // ---------------------------------------------------------------------------------------------
