@@ -86,9 +86,16 @@ TemplateSurfaceClosestPoint::TemplateSurfaceClosestPoint(
   triangles_.resize(static_cast<Eigen::Index>(refined.size()), 3);
   for (std::size_t f = 0; f < refined.size(); ++f)
     triangles_.row(static_cast<Eigen::Index>(f)) = refined[f].transpose();
+  vertex_triangles_.resize(positions.size());
+  for (Eigen::Index f = 0; f < triangles_.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      vertex_triangles_[static_cast<std::size_t>(triangles_(f, k))].push_back(f);
+    }
+  }
 }
 
 void TemplateSurfaceClosestPoint::update(const Eigen::Ref<const Eigen::VectorXd>& x) {
+  x_ = x;
   offline::io::SurfaceMesh deformed;
   deformed.triangles = triangles_;
   deformed.vertices.resize(rest_positions_.rows(), 3);
@@ -114,7 +121,33 @@ offline::EmbeddedPoint TemplateSurfaceClosestPoint::closest(const Eigen::Vector3
 }
 
 Eigen::Vector3d TemplateSurfaceClosestPoint::normal(const Eigen::Vector3d& query) const {
-  return deformed_->triangle_normal(deformed_->closest(query).triangle);
+  // A function of the closest point alone, not of which of the triangles holding it (an edge, a
+  // corner) the search returned: that choice follows the last bits of x and so the machine's
+  // BLAS kernels (see offline::BoundaryClosestPoint::normal, the same rule on the tet boundary).
+  const SurfaceDistance::Closest c = deformed_->closest(query);
+  const Eigen::Vector3d own = deformed_->triangle_normal(c.triangle);
+  const auto corner = [&](int k) {
+    return offline::embedded_position(
+        tets_, points_[static_cast<std::size_t>(triangles_(c.triangle, k))], x_);
+  };
+  const Eigen::Vector3d a = corner(0), b = corner(1), d = corner(2);
+  const double size = std::max({(b - a).norm(), (d - b).norm(), (a - d).norm()});
+  if (c.distance > 1e-6 * size) return Eigen::Vector3d((query - c.point) / c.distance);
+  std::vector<int> support;  // the triangle's vertices the closest point depends on
+  for (int k = 0; k < 3; ++k) {
+    if (c.barycentric[k] > 0.0) support.push_back(triangles_(c.triangle, k));
+  }
+  if (support.size() == 3 || support.empty()) return own;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Eigen::Index f : vertex_triangles_[static_cast<std::size_t>(support.front())]) {
+    bool holds = true;
+    for (const int v : support) {
+      holds = holds && (triangles_(f, 0) == v || triangles_(f, 1) == v || triangles_(f, 2) == v);
+    }
+    if (holds) sum += deformed_->triangle_normal(f);
+  }
+  const double length = sum.norm();
+  return length > 0.0 ? Eigen::Vector3d(sum / length) : own;
 }
 
 }  // namespace sinew::tools

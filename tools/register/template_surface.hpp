@@ -36,7 +36,9 @@ class TemplateSurfaceClosestPoint final : public offline::ClosestSurfacePoint {
 
   void update(const Eigen::Ref<const Eigen::VectorXd>& x) override;
   offline::EmbeddedPoint closest(const Eigen::Vector3d& query) const override;
-  /// The normal of the deformed template triangle holding the closest point.
+  /// The surface normal at the closest point, whichever triangle holding it the search returned:
+  /// off the surface (query − point)/distance, on it the mean normal of the triangles holding the
+  /// point (a triangle's own inside it).
   Eigen::Vector3d normal(const Eigen::Vector3d& query) const override;
 
  private:
@@ -47,6 +49,8 @@ class TemplateSurfaceClosestPoint final : public offline::ClosestSurfacePoint {
   Eigen::MatrixXd rest_positions_;
   Eigen::MatrixXi triangles_;
   std::optional<SurfaceDistance> deformed_;
+  Eigen::VectorXd x_;                                        // positions of the last update
+  std::vector<std::vector<Eigen::Index>> vertex_triangles_;  // triangles around each vertex
 };
 
 }  // namespace sinew::tools
