@@ -67,16 +67,6 @@ const Sequence& sequence() {
   return seq;
 }
 
-double distance_to(const std::vector<Eigen::Vector2d>& pts, const Eigen::Vector2d& p) {
-  double best = 1e30;
-  for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
-    const Eigen::Vector2d a = pts[i], ab = pts[i + 1] - pts[i];
-    const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
-    best = std::min(best, (a + t * ab - p).norm());
-  }
-  return best;
-}
-
 void BM_TenWhiskersFrame(benchmark::State& state) {
   const Sequence& seq = sequence();
   std::vector<double> micros;
@@ -110,7 +100,7 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
         const auto truth = seq.truth[f][w].points();
         double sum = 0.0;
         for (int i = 0; i < tracker.whisker(w).num_nodes(); ++i) {
-          sum += distance_to(truth, tracker.whisker(w).node_position(i));
+          sum += sinew::testing::distance_to_polyline(truth, tracker.whisker(w).node_position(i));
         }
         error_sum += sum / tracker.whisker(w).num_nodes();
       }

@@ -15,21 +15,10 @@ namespace {
 
 using sinew::testing::SceneWhisker;
 
-// Distance from p to the polyline pts.
-double distance_to(const std::vector<Eigen::Vector2d>& pts, const Eigen::Vector2d& p) {
-  double best = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
-    const Eigen::Vector2d a = pts[i], ab = pts[i + 1] - pts[i];
-    const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
-    best = std::min(best, (a + t * ab - p).norm());
-  }
-  return best;
-}
-
 double mean_distance(const std::vector<Eigen::Vector2d>& curve,
                      const std::vector<Eigen::Vector2d>& truth) {
   double sum = 0.0;
-  for (const auto& p : curve) sum += distance_to(truth, p);
+  for (const auto& p : curve) sum += sinew::testing::distance_to_polyline(truth, p);
   return sum / curve.size();
 }
 

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "tests/support/beam_render.hpp"
@@ -81,6 +82,18 @@ inline void draw_whisker(GreyImage& img, const SceneWhisker& w) {
     const double v = img.pixels[k] - dark[k];
     img.pixels[k] = static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 255.0)));
   }
+}
+
+/// Distance from p to the polyline pts (the true curve of a whisker, for scoring a fit).
+inline double distance_to_polyline(const std::vector<Eigen::Vector2d>& pts,
+                                   const Eigen::Vector2d& p) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
+    const Eigen::Vector2d a = pts[i], ab = pts[i + 1] - pts[i];
+    const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+    best = std::min(best, (a + t * ab - p).norm());
+  }
+  return best;
 }
 
 /// A dark straight rod of the given half width and grey level from a to b.
