@@ -79,7 +79,10 @@ def main():
     ap.add_argument("--min-depth", type=float, default=1.0, help="grey levels")
     ap.add_argument("--min-fraction", type=float, default=0.7)
     ap.add_argument("--require", type=float, default=0.0,
-                    help="exit 1 when the on-ridge fraction of whisker-frames is below this")
+                    help="exit 1 when the on-ridge fraction of tracked whisker-frames is below this")
+    ap.add_argument("--require-all", type=float, default=0.0,
+                    help="exit 1 when the on-ridge fraction of all whisker-frames (lost ones "
+                         "counting as off) is below this")
     args = ap.parse_args()
 
     frames = {}
@@ -147,7 +150,7 @@ def main():
     print(f"on a pole or other thick dark object: {on_pole}")
     print("per whisker (id: tracked, on ridge): " +
           ", ".join(f"{k}: {v[0]}, {v[1]}" for k, v in sorted(per_whisker.items())))
-    if fraction < args.require or on_pole > 0:
+    if fraction < args.require or on_ridge / max(total, 1) < args.require_all or on_pole > 0:
         sys.exit(1)
 
 

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <Eigen/Eigenvalues>
+#include <limits>
 
 namespace sinew::rt {
 
@@ -12,6 +14,26 @@ namespace {
 
 std::string field_error(const char* field, double value, const char* constraint) {
   return detail::field_error("whisker tracker: ", field, value, constraint);
+}
+
+// Arc lengths along a polyline.
+std::vector<double> arc_lengths(const std::vector<Eigen::Vector2d>& pts) {
+  std::vector<double> s(pts.size(), 0.0);
+  for (std::size_t i = 1; i < pts.size(); ++i) s[i] = s[i - 1] + (pts[i] - pts[i - 1]).norm();
+  return s;
+}
+
+// Unit direction of a polyline from its first point to its point at arc length `along` (or its
+// last point).
+Eigen::Vector2d direction_at_start(const std::vector<Eigen::Vector2d>& pts, double along) {
+  std::size_t k = 1;
+  double s = 0.0;
+  while (k + 1 < pts.size() && s < along) {
+    s += (pts[k] - pts[k - 1]).norm();
+    ++k;
+  }
+  const Eigen::Vector2d d = pts[k] - pts.front();
+  return d.norm() > 0.0 ? Eigen::Vector2d(d.normalized()) : Eigen::Vector2d(1.0, 0.0);
 }
 
 // Squared distance from p to segment ab.
@@ -79,6 +101,21 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
   }
   if (!(max_jump_px > 0.0)) return field_error("max_jump_px", max_jump_px, "must be > 0");
   if (!(claim_px > 0.0)) return field_error("claim_px", claim_px, "must be > 0");
+  if (!(associate_follicle_px > 0.0))
+    return field_error("associate_follicle_px", associate_follicle_px, "must be > 0");
+  if (!(associate_angle_deg > 0.0))
+    return field_error("associate_angle_deg", associate_angle_deg, "must be > 0");
+  if (!(reacquire_radius_px > 0.0))
+    return field_error("reacquire_radius_px", reacquire_radius_px, "must be > 0");
+  if (!(associate_min_length_fraction >= 0.0 && associate_min_length_fraction <= 1.0)) {
+    return field_error("associate_min_length_fraction", associate_min_length_fraction,
+                       "must be in [0, 1]");
+  }
+  if (!(associate_cover_fraction >= 0.0 && associate_cover_fraction <= 1.0)) {
+    return field_error("associate_cover_fraction", associate_cover_fraction, "must be in [0, 1]");
+  }
+  if (!(associate_on_px > 0.0))
+    return field_error("associate_on_px", associate_on_px, "must be > 0");
   if (!(claim_fraction > 0.0 && claim_fraction <= 1.0)) {
     return field_error("claim_fraction", claim_fraction, "must be in (0, 1]");
   }
@@ -123,6 +160,13 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
   moved_px_.assign(trackers_.size(), 0.0);
   previous_.resize(trackers_.size());
   for (std::size_t w = 0; w < trackers_.size(); ++w) previous_[w] = trackers_[w].state();
+  anchor_follicle_.resize(trackers_.size());
+  anchor_direction_.resize(trackers_.size());
+  for (std::size_t w = 0; w < trackers_.size(); ++w) {
+    anchor_follicle_[w] = whiskers[w].front();
+    anchor_direction_[w] =
+        direction_at_start(whiskers[w], first_element_length(static_cast<int>(w)));
+  }
 }
 
 double WhiskerTracker::fraction_near(int a, int b) const {
@@ -163,86 +207,255 @@ bool WhiskerTracker::any_lost() const {
   return false;
 }
 
-int WhiskerTracker::reacquire(const std::vector<std::vector<Eigen::Vector2d>>& detected) {
+double WhiskerTracker::first_element_length(int w) const {
+  const Eigen::Matrix2Xd& X = trackers_[w].model().rest_positions();
+  return (X.col(1) - X.col(0)).norm();
+}
+
+double WhiskerTracker::rest_length(int w) const {
+  const Eigen::Matrix2Xd& X = trackers_[w].model().rest_positions();
+  double length = 0.0;
+  for (int i = 1; i < X.cols(); ++i) length += (X.col(i) - X.col(i - 1)).norm();
+  return length;
+}
+
+bool WhiskerTracker::runs_along(int w, const std::vector<Eigen::Vector2d>& pts) const {
+  // More than claim_fraction of the fit's nodes up to the detection's length within
+  // associate_on_px of its curve.
+  const Tracker& t = trackers_[w];
+  const double length = arc_lengths(pts).back();
+  const double limit_sq = options_.associate_on_px * options_.associate_on_px;
+  double s = 0.0;
+  int near = 0, considered = 0;
+  for (int i = 0; i < t.num_nodes(); ++i) {
+    if (i > 0) s += (t.node_position(i) - t.node_position(i - 1)).norm();
+    if (s > length) break;
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k + 1 < pts.size() && best > limit_sq; ++k) {
+      best = std::min(best, segment_distance_sq(t.node_position(i), pts[k], pts[k + 1]));
+    }
+    near += best <= limit_sq;
+    ++considered;
+  }
+  return near > options_.claim_fraction * considered;
+}
+
+Eigen::Matrix2Xd WhiskerTracker::nodes_along(int w, const std::vector<Eigen::Vector2d>& pts) const {
+  // Nodes at the whisker's own rest arc lengths along the curve (past its end, along its last
+  // direction).
+  const Tracker& t = trackers_[w];
+  const std::vector<double> s = arc_lengths(pts);
+  Eigen::Matrix2Xd nodes(2, t.num_nodes());
+  double target = 0.0;
+  std::size_t seg = 0;
+  for (int i = 0; i < t.num_nodes(); ++i) {
+    if (i > 0) {
+      target += (t.model().rest_positions().col(i) - t.model().rest_positions().col(i - 1)).norm();
+    }
+    while (seg + 2 < pts.size() && s[seg + 1] < target) ++seg;
+    const double len = s[seg + 1] - s[seg];
+    const double a = len > 0.0 ? (target - s[seg]) / len : 0.0;  // may exceed 1 past the end
+    nodes.col(i) = pts[seg] + std::max(0.0, a) * (pts[seg + 1] - pts[seg]);
+  }
+  return nodes;
+}
+
+WhiskerAssociation WhiskerTracker::associate(
+    const ImageView& frame, const std::vector<std::vector<Eigen::Vector2d>>& detected) {
+  WhiskerAssociation summary;
   const int n = num_whiskers();
-  // Each detected whisker resampled at every tracked whisker's rest arc lengths is done on
-  // demand; first the candidates: detected curves no tracked whisker runs along.
-  std::vector<char> free(detected.size(), 1);
+  std::vector<int> cand;  // usable detections
   for (std::size_t d = 0; d < detected.size(); ++d) {
-    if (detected[d].size() < 2) {
-      free[d] = 0;
-      continue;
-    }
-    Eigen::Matrix2Xd pts(2, detected[d].size());
-    for (std::size_t k = 0; k < detected[d].size(); ++k) pts.col(k) = detected[d][k];
-    for (int b = 0; b < n && free[d]; ++b) {
-      if (results_[b].status == FrameStatus::kLost) continue;
-      if (fraction_near(pts, b) > options_.claim_fraction) free[d] = 0;
-    }
+    if (detected[d].size() >= 2) cand.push_back(static_cast<int>(d));
   }
-  // Pairs (lost whisker, candidate) by follicle distance, nearest first.
-  struct Pair {
-    double distance;
-    int whisker;
-    std::size_t candidate;
-  };
-  std::vector<Pair> pairs;
-  const double cos_limit = std::cos(options_.reacquire_angle_deg * M_PI / 180.0);
+  const int m = static_cast<int>(cand.size());
+  summary.detected = m;
+  if (n == 0 || m == 0) return summary;
+
+  // Follicles never change their order along the face. The order is read along the principal
+  // axis of the anchored follicles (the whisker pad's row, whatever side the face is on).
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (int w = 0; w < n; ++w) mean += anchor_follicle_[w];
+  mean /= n;
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
   for (int w = 0; w < n; ++w) {
-    if (results_[w].status != FrameStatus::kLost) continue;
-    const Tracker& t = trackers_[w];
-    const Eigen::Vector2d base = t.node_position(0);
-    const Eigen::Vector2d dir = (t.node_position(1) - base).normalized();
+    const Eigen::Vector2d q = anchor_follicle_[w] - mean;
+    cov += q * q.transpose();
+  }
+  Eigen::Vector2d axis(1.0, 0.0);
+  if (n >= 2) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+    axis = eig.eigenvectors().col(1);
+  }
+  std::vector<int> order_w(n), order_d(m);
+  for (int w = 0; w < n; ++w) order_w[w] = w;
+  for (int k = 0; k < m; ++k) order_d[k] = cand[k];
+  std::sort(order_w.begin(), order_w.end(), [&](int a, int b) {
+    return anchor_follicle_[a].dot(axis) < anchor_follicle_[b].dot(axis);
+  });
+  std::sort(order_d.begin(), order_d.end(), [&](int a, int b) {
+    return detected[a].front().dot(axis) < detected[b].front().dot(axis);
+  });
+
+  // Each tracked whisker's follicle and first direction, each detection's over the same arc.
+  // Each whisker is matched from where a detection last confirmed it (its anchor), not from its
+  // fit, which may have slid or been lost since.
+  const std::vector<Eigen::Vector2d>& fw = anchor_follicle_;
+  const std::vector<Eigen::Vector2d>& dw = anchor_direction_;
+  // cost(i, k): whisker order_w[i] against detection order_d[k] under a common shift of the pad.
+  const double fs = options_.associate_follicle_px;
+  const double as = options_.associate_angle_deg * M_PI / 180.0;
+  std::vector<double> angle(static_cast<std::size_t>(n) * m);
+  for (int i = 0; i < n; ++i) {
+    const int w = order_w[i];
+    const double first = first_element_length(w);
+    for (int k = 0; k < m; ++k) {
+      const Eigen::Vector2d dd = direction_at_start(detected[order_d[k]], first);
+      angle[i * m + k] = std::acos(std::clamp(dd.dot(dw[w]), -1.0, 1.0));
+      // A detection much shorter than the whisker (a faint or blurred stretch ended its trace)
+      // cannot place it: nodes past its end would be guessed.
+      if (arc_lengths(detected[order_d[k]]).back() <
+          options_.associate_min_length_fraction * rest_length(w)) {
+        angle[i * m + k] = std::numeric_limits<double>::infinity();
+      }
+    }
+  }
+  auto pair_cost = [&](int i, int k, const Eigen::Vector2d& shift) {
+    const double dist = (fw[order_w[i]] + shift - detected[order_d[k]].front()).norm() / fs;
+    const double ang = angle[i * m + k] / as;
+    return dist * dist + ang * ang;
+  };
+  // Order-preserving matching (skips allowed on both sides) by dynamic programming: a pair is
+  // taken when its cost is below 1 (a skip on each side costs 1/2).
+  std::vector<double> dp(static_cast<std::size_t>(n + 1) * (m + 1));
+  std::vector<char> step(dp.size());
+  auto solve = [&](const Eigen::Vector2d& shift) {
+    const int cols = m + 1;
+    for (int i = 0; i <= n; ++i) {
+      for (int k = 0; k <= m; ++k) {
+        double best = std::numeric_limits<double>::infinity();
+        char how = 0;
+        if (i == 0 && k == 0) best = 0.0;
+        if (i > 0 && dp[(i - 1) * cols + k] + 0.5 < best) {
+          best = dp[(i - 1) * cols + k] + 0.5;
+          how = 1;  // whisker unmatched
+        }
+        if (k > 0 && dp[i * cols + k - 1] + 0.5 < best) {
+          best = dp[i * cols + k - 1] + 0.5;
+          how = 2;  // detection unmatched
+        }
+        if (i > 0 && k > 0) {
+          const double c = pair_cost(i - 1, k - 1, shift);
+          if (c < 1.0 && dp[(i - 1) * cols + k - 1] + c < best) {
+            best = dp[(i - 1) * cols + k - 1] + c;
+            how = 3;
+          }
+        }
+        dp[i * cols + k] = best;
+        step[i * cols + k] = how;
+      }
+    }
+    return dp[n * cols + m];
+  };
+  // The shift: none (the fits of this frame are where the whiskers are) or the one that brings a
+  // whisker's follicle onto a detection's, whichever matches best.
+  Eigen::Vector2d best_shift = Eigen::Vector2d::Zero();
+  double best_total = solve(best_shift);
+  for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < m; ++k) {
+      if (angle[i * m + k] > as) continue;
+      const Eigen::Vector2d shift = detected[order_d[k]].front() - fw[order_w[i]];
+      if (shift.norm() > options_.reacquire_radius_px) continue;
+      const double total = solve(shift);
+      if (total < best_total - 1e-12) {
+        best_total = total;
+        best_shift = shift;
+      }
+    }
+  }
+  solve(best_shift);
+  summary.shift = best_shift;
+  std::vector<int> match(n, -1);
+  for (int i = n, k = m; i > 0 || k > 0;) {
+    const char how = step[i * (m + 1) + k];
+    if (how == 3) {
+      match[order_w[i - 1]] = order_d[k - 1];
+      --i;
+      --k;
+    } else if (how == 1) {
+      --i;
+    } else {
+      --k;
+    }
+  }
+
+  // A whisker that tracking kept keeps its fit. Restarting fits that stray from their detection
+  // was tried: on the shared video 68.2 % of whisker-frames on a ridge against 76.2 % (restarting
+  // only where the detection covers 80 % of the whisker), since a 30 fps frame's detections are
+  // often shorter than the whisker or run onto a crossing one. A lost
+  // one restarts on its detection and is fitted to this frame again; a refit that leaves the
+  // detection (slides along it, onto a neighbour) is undone: the whisker stays on its detection,
+  // reported not converged.
+  auto on_detection = [&](int w, const std::vector<Eigen::Vector2d>& pts) {
+    return runs_along(w, pts) &&
+           (trackers_[w].node_position(0) - pts.front()).norm() <= options_.associate_on_px;
+  };
+  for (int w = 0; w < n; ++w) {
+    if (match[w] < 0) continue;
+    ++summary.matched;
+    const auto& pts = detected[match[w]];
+    anchor_follicle_[w] = pts.front();
+    anchor_direction_[w] = direction_at_start(pts, first_element_length(w));
+    WhiskerFrame& r = results_[w];
+    if (r.status != FrameStatus::kLost) continue;
+    const Eigen::Matrix2Xd nodes = nodes_along(w, pts);
+    trackers_[w].restart_at(nodes);
+    r.summary = trackers_[w].track(frame);
+    r.status = r.summary.status;
+    if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
+      trackers_[w].restart_at(nodes);
+      // Placed without a fit: only where the detection covers the whisker; a short one would
+      // leave its outer nodes guessed.
+      const bool covers =
+          arc_lengths(pts).back() >= options_.associate_cover_fraction * rest_length(w);
+      r.status = covers ? FrameStatus::kNotConverged : FrameStatus::kLost;
+    }
+    r.reacquired = true;
+    r.jumped = false;
+    r.on_neighbour = false;
+    ++summary.restarted;
+  }
+  // A whisker no detection matched keeps its fit unless the fit runs along a detection another
+  // whisker took: then it is on its neighbour.
+  std::vector<char> taken(detected.size(), 0);
+  for (int w = 0; w < n; ++w) {
+    if (match[w] >= 0) taken[match[w]] = 1;
+  }
+  for (int w = 0; w < n; ++w) {
+    if (match[w] >= 0 || results_[w].status == FrameStatus::kLost) continue;
     for (std::size_t d = 0; d < detected.size(); ++d) {
-      if (!free[d]) continue;
-      const double distance = (detected[d].front() - base).norm();
-      if (distance > options_.reacquire_radius_px) continue;
-      // The detected direction over the same arc length as the whisker's first element.
-      const double first =
-          (t.model().rest_positions().col(1) - t.model().rest_positions().col(0)).norm();
-      std::size_t k = 1;
-      double s = 0.0;
-      while (k + 1 < detected[d].size() && s < first) {
-        s += (detected[d][k] - detected[d][k - 1]).norm();
-        ++k;
-      }
-      const Eigen::Vector2d ddir = (detected[d][k] - detected[d].front()).normalized();
-      if (ddir.dot(dir) < cos_limit) continue;
-      pairs.push_back({distance, w, d});
+      if (!taken[d] || detected[d].size() < 2 || !runs_along(w, detected[d])) continue;
+      trackers_[w].reject_last_frame();
+      results_[w].status = FrameStatus::kLost;
+      results_[w].on_neighbour = true;
+      break;
     }
   }
-  std::sort(pairs.begin(), pairs.end(),
-            [](const Pair& a, const Pair& b) { return a.distance < b.distance; });
-  int restarted = 0;
-  std::vector<char> done(n, 0);
-  for (const Pair& p : pairs) {
-    if (done[p.whisker] || !free[p.candidate]) continue;
-    Tracker& t = trackers_[p.whisker];
-    // Nodes at the whisker's own rest arc lengths along the detected curve (past its end, along
-    // its last direction).
-    const auto& pts = detected[p.candidate];
-    std::vector<double> s(pts.size(), 0.0);
-    for (std::size_t i = 1; i < pts.size(); ++i) s[i] = s[i - 1] + (pts[i] - pts[i - 1]).norm();
-    Eigen::Matrix2Xd nodes(2, t.num_nodes());
-    double target = 0.0;
-    std::size_t seg = 0;
-    for (int i = 0; i < t.num_nodes(); ++i) {
-      if (i > 0) {
-        target +=
-            (t.model().rest_positions().col(i) - t.model().rest_positions().col(i - 1)).norm();
-      }
-      while (seg + 2 < pts.size() && s[seg + 1] < target) ++seg;
-      const double len = s[seg + 1] - s[seg];
-      const double a = len > 0.0 ? (target - s[seg]) / len : 0.0;  // may exceed 1 past the end
-      nodes.col(i) = pts[seg] + std::max(0.0, a) * (pts[seg + 1] - pts[seg]);
+  update_geometry();
+  return summary;
+}
+
+void WhiskerTracker::update_geometry() noexcept {
+  for (int w = 0; w < num_whiskers(); ++w) {
+    const Tracker& t = trackers_[w];
+    WhiskerFrame& r = results_[w];
+    r.follicle = t.node_position(0);
+    r.tip = t.node_position(t.num_nodes() - 1);
+    r.length_px = 0.0;
+    for (int i = 1; i < t.num_nodes(); ++i) {
+      r.length_px += (t.node_position(i) - t.node_position(i - 1)).norm();
     }
-    t.restart_at(nodes);
-    results_[p.whisker].reacquired = true;
-    done[p.whisker] = 1;
-    free[p.candidate] = 0;
-    ++restarted;
   }
-  return restarted;
 }
 
 double WhiskerTracker::track(const ImageView& frame) noexcept {
@@ -281,16 +494,7 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
       if (loser == a) break;
     }
   }
-  for (int w = 0; w < n; ++w) {
-    const Tracker& t = trackers_[w];
-    WhiskerFrame& r = results_[w];
-    r.follicle = t.node_position(0);
-    r.tip = t.node_position(t.num_nodes() - 1);
-    r.length_px = 0.0;
-    for (int i = 1; i < t.num_nodes(); ++i) {
-      r.length_px += (t.node_position(i) - t.node_position(i - 1)).norm();
-    }
-  }
+  update_geometry();
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 

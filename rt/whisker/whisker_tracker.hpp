@@ -39,9 +39,19 @@ struct WhiskerTrackerOptions {
   /// pixels, > 0. Should exceed the true motion per frame (the search reaches
   /// tracker.first_search_range_px).
   double max_jump_px = 20.0;
-  /// See reacquire().
+  /// See associate(): the follicle distance and the angle between first directions that cost
+  /// as much as leaving a whisker unmatched (a pair is taken below both in quadrature), the
+  /// largest motion of the pad between the whiskers' last fits and the detection, pixels and
+  /// degrees, > 0; and how near a fit's nodes must lie to its detection to be kept, pixels.
+  double associate_follicle_px = 10.0;
+  double associate_angle_deg = 30.0;
   double reacquire_radius_px = 30.0;
-  double reacquire_angle_deg = 30.0;
+  double associate_on_px = 3.0;
+  /// A detection shorter than this fraction of a whisker's length is not matched to it, and one
+  /// shorter than associate_cover_fraction of it places a whisker whose refit failed only as
+  /// lost (its outer nodes would be guessed), [0, 1].
+  double associate_min_length_fraction = 0.4;
+  double associate_cover_fraction = 0.8;
   /// See the header comment.
   double claim_px = 1.5;
   double claim_fraction = 0.5;
@@ -55,11 +65,19 @@ struct WhiskerFrame {
   FrameStatus status = FrameStatus::kLost;
   bool on_neighbour = false;  ///< the fit ran onto another whisker and was discarded
   bool jumped = false;        ///< the fit moved more than max_jump_px and was discarded
-  bool reacquired = false;    ///< restarted by reacquire() after this frame
+  bool reacquired = false;    ///< restarted on its detection by associate() on this frame
   Eigen::Vector2d follicle = Eigen::Vector2d::Zero();  ///< first node
   Eigen::Vector2d tip = Eigen::Vector2d::Zero();       ///< last node
   double length_px = 0.0;                              ///< along the fitted nodes
   FrameSummary summary;                                ///< the whisker's own tracker summary
+};
+
+/// What associate() did on one frame.
+struct WhiskerAssociation {
+  int detected = 0;   ///< detections offered
+  int matched = 0;    ///< whiskers matched to one
+  int restarted = 0;  ///< of those, restarted on it and fitted again
+  Eigen::Vector2d shift = Eigen::Vector2d::Zero();  ///< the pad's shift the matching used
 };
 
 class WhiskerTracker {
@@ -78,18 +96,31 @@ class WhiskerTracker {
   /// Tracks every whisker on one frame; returns the wall time in seconds. No allocation.
   double track(const ImageView& frame) noexcept;
 
-  /// Re-acquires the whiskers lost on the last tracked frame from whiskers detected on it
-  /// (detect_whiskers; follicle first). A lost whisker takes the detected one whose follicle is
-  /// nearest its own last follicle, within reacquire_radius_px, whose direction at the follicle
-  /// is within reacquire_angle_deg of its own, and along which no tracked whisker runs (the
-  /// claim test): never another whisker, a pole or a lick port, which detection does not report.
-  /// Its state restarts on that curve (Tracker::restart_at) and it is reported as re-acquired.
-  /// Outside the real-time contract (allocates); returns how many were re-acquired.
-  int reacquire(const std::vector<std::vector<Eigen::Vector2d>>& detected);
+  /// Associates the whiskers with those detected on the frame just tracked (detect_whiskers,
+  /// follicle first), for videos whose whiskers move more between frames than the search reaches
+  /// (25–100 fps cameras) and to recover lost whiskers. Follicles keep their order along the face,
+  /// so the matching preserves it: tracked whiskers and detections are ordered along the pad's row
+  /// (the principal axis of the tracked follicles) and matched by dynamic programming, with skips
+  /// on both sides, on the follicle distance and the angle between first directions under one
+  /// common shift of the pad (none, or up to reacquire_radius_px: the shift that matches best).
+  /// A whisker whose fit runs along its detection keeps it; a lost one, or one whose fit lies
+  /// elsewhere, restarts on its detection (Tracker::restart_at) and is fitted to `frame` again.
+  /// A whisker no detection matches keeps its own fit, so a faint whisker detection misses on a
+  /// frame is not lost by it. Detection reports no pole, lick port or face outline, so no
+  /// whisker is restarted on one. Outside the real-time contract (allocates).
+  WhiskerAssociation associate(const ImageView& frame,
+                               const std::vector<std::vector<Eigen::Vector2d>>& detected);
   /// Any whisker lost on the last tracked frame.
   bool any_lost() const;
 
  private:
+  void update_geometry() noexcept;
+  double first_element_length(int w) const;
+  double rest_length(int w) const;
+  // Whisker w's nodes at its rest arc lengths along a curve, follicle first.
+  Eigen::Matrix2Xd nodes_along(int w, const std::vector<Eigen::Vector2d>& pts) const;
+  // Whether whisker w's fit lies within associate_on_px of the curve along the curve's length.
+  bool runs_along(int w, const std::vector<Eigen::Vector2d>& pts) const;
   // Fraction of whisker a's nodes within claim_px of whisker b's node polyline.
   double fraction_near(int a, int b) const;
   // Fraction of the points within claim_px of whisker b's node polyline.
@@ -101,6 +132,8 @@ class WhiskerTracker {
   std::vector<WhiskerFrame> results_;
   std::vector<double> moved_px_;  // max node displacement this frame, per whisker
   std::vector<Eigen::VectorXd> previous_;
+  // Where a detection last confirmed each whisker: follicle and first direction.
+  std::vector<Eigen::Vector2d> anchor_follicle_, anchor_direction_;
 };
 
 }  // namespace sinew::rt

@@ -76,9 +76,10 @@ struct Scene {
   testing::GreyImage image{400, 300, 0};
 };
 
-Scene scene(double rotation, unsigned seed, bool with_rod = true) {
+Scene scene(double rotation, unsigned seed, bool with_rod = true,
+            const Eigen::Vector2d& head_shift = Eigen::Vector2d::Zero()) {
   Scene s;
-  const Eigen::Vector2d centre(-60.0, 150.0);
+  const Eigen::Vector2d centre = Eigen::Vector2d(-60.0, 150.0) + head_shift;
   const double radius = 150.0;
   const double contrasts[] = {6.0, 14.0, 8.0, 16.0, 10.0};
   for (int k = 0; k < 5; ++k) {
@@ -215,6 +216,70 @@ TEST(WhiskerTracker, AVanishedWhiskerIsNeverOkOnARodThatCrossesWhereItWas) {
         EXPECT_EQ(tracker.result(k).status, FrameStatus::kOk) << "whisker " << k;
       }
     }
+  }
+}
+
+TEST(WhiskerTracker, AssociationKeepsIdentitiesWhenTheHeadMovesFurtherThanTheSearchReaches) {
+  // A 30 frames/s camera: between two frames the head moves 16 px and the whiskers turn 12°,
+  // further than a whisker's search reaches. Detection on the new frame and associate() must put
+  // every whisker back on its own curve: in order along the face, never on its neighbour.
+  const Scene first = scene(0.0, 11);
+  std::vector<std::vector<Eigen::Vector2d>> init;
+  for (const auto& w : first.whiskers) init.push_back(w.points());
+  WhiskerTracker tracker(init);
+  ASSERT_TRUE(tracker.valid()) << tracker.error();
+  tracker.track(first.image.view());
+  const Scene moved = scene(12.0 * M_PI / 180.0, 12, true, Eigen::Vector2d(0.0, 16.0));
+  tracker.track(moved.image.view());
+  int wrong_before = 0;
+  for (int k = 0; k < 5; ++k) {
+    const bool on_own =
+        mean_distance(nodes_of(tracker.whisker(k)), moved.whiskers[k].points()) < 1.0;
+    wrong_before += tracker.result(k).status == FrameStatus::kLost || !on_own;
+  }
+  std::cout << "whiskers lost or off their own curve after tracking alone: " << wrong_before
+            << " of 5\n";
+  EXPECT_GE(wrong_before, 2) << "the motion is meant to be beyond the search";
+
+  WhiskerDetectionOptions o;
+  o.face = FaceSide::kLeft;
+  const WhiskerDetection d = detect_whiskers(moved.image.view(), o);
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  std::vector<std::vector<Eigen::Vector2d>> traces;
+  for (const auto& w : d.whiskers) traces.push_back(w.points);
+  const WhiskerAssociation a = tracker.associate(moved.image.view(), traces);
+  std::cout << "associate: " << a.detected << " detected, " << a.matched << " matched, "
+            << a.restarted << " restarted, pad shift (" << a.shift.transpose() << ")\n";
+  EXPECT_EQ(a.matched, 5);
+  // Every whisker restarted lands on its own curve (a mismatched order would put it on a
+  // neighbour's, 30 px away), and so does the next frame's fit from there. Fits that tracking
+  // kept are kept (see associate()), even off their curve: counted, not required.
+  int restarted_on_own = 0, kept_off = 0;
+  for (int k = 0; k < 5; ++k) {
+    SCOPED_TRACE("whisker " + std::to_string(k));
+    const double own = mean_distance(nodes_of(tracker.whisker(k)), moved.whiskers[k].points());
+    if (tracker.result(k).reacquired) {
+      EXPECT_NE(tracker.result(k).status, FrameStatus::kLost);
+      EXPECT_LT(own, 1.0);
+      EXPECT_LT((tracker.result(k).follicle - moved.whiskers[k].follicle).norm(), 2.0);
+      restarted_on_own += own < 1.0;
+    } else {
+      kept_off += own >= 1.0;
+    }
+  }
+  std::cout << "restarted onto their own curve: " << restarted_on_own << "; kept off it: "
+            << kept_off << "\n";
+  EXPECT_EQ(a.restarted, restarted_on_own);
+  EXPECT_GE(a.restarted, 2);
+  std::vector<int> restarted;
+  for (int k = 0; k < 5; ++k) {
+    if (tracker.result(k).reacquired) restarted.push_back(k);
+  }
+  tracker.track(moved.image.view());
+  for (int k : restarted) {
+    EXPECT_EQ(tracker.result(k).status, FrameStatus::kOk) << "whisker " << k;
+    EXPECT_LT(mean_distance(nodes_of(tracker.whisker(k)), moved.whiskers[k].points()), 1.0)
+        << "whisker " << k;
   }
 }
 

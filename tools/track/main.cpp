@@ -485,6 +485,7 @@ int main(int argc, char** argv) {
   bool whiskers = false;
   std::string face = "auto";
   double min_length = 40.0;
+  std::string redetect = "every";
   app.add_flag("--whiskers", whiskers,
                "find every whisker leaving the face on the first frame and track them all "
                "(no --init)");
@@ -492,6 +493,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "left", "right", "top", "bottom"}));
   app.add_option("--min-length-px", min_length, "--whiskers: shortest whisker reported")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--redetect", redetect,
+                 "--whiskers: detect again after tracking on every frame (default; cameras "
+                 "below ~200 fps, whose whiskers move further than the search reaches), only on "
+                 "frames with a lost whisker (high-speed cameras), or never")
+      ->check(CLI::IsMember({"every", "lost", "never"}));
   app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)")->required();
   app.add_option("--overlay", args.overlay, "folder for overlay PNGs, or a .mp4/.avi file");
   app.add_option("--stride", args.stride, "process every K-th frame")->check(CLI::PositiveNumber);
@@ -529,6 +535,7 @@ int main(int argc, char** argv) {
       w.count = args.count;
       w.quiet = args.quiet;
       w.min_length_px = min_length;
+      w.redetect = redetect;
       return tools::run_whiskers(w);
     }
     if (args.init.empty()) throw tools::InputError("--init is required (or --whiskers)");

@@ -82,7 +82,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   OverlaySink overlay(args.overlay);
 
   std::optional<rt::WhiskerTracker> tracker;
-  std::vector<double> latencies, reacquire_times;
+  std::vector<double> latencies, redetect_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
   int index = 0, processed = 0;
@@ -131,22 +131,31 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     }
     const double seconds = tracker->track(view);
     latencies.push_back(seconds * 1e6);
-    // Lost whiskers are looked for again near their last follicle (outside the real-time path).
-    double reacquire_ms = 0.0;
-    if (tracker->any_lost()) {
+    // Detection again, outside the real-time path: the whiskers are matched to it in their order
+    // along the face, and lost or misplaced ones restart on theirs.
+    double redetect_ms = 0.0;
+    rt::WhiskerAssociation association;
+    const bool redetect = args.redetect == "every" || (args.redetect == "lost" && tracker->any_lost());
+    if (redetect) {
       const auto t0 = std::chrono::steady_clock::now();
       const rt::WhiskerDetection again = rt::detect_whiskers(view, detect_options);
       std::vector<std::vector<Eigen::Vector2d>> traces;
       for (const auto& w : again.whiskers) traces.push_back(w.points);
-      if (again.error.empty()) tracker->reacquire(traces);
-      reacquire_ms =
+      if (again.error.empty()) association = tracker->associate(view, traces);
+      redetect_ms =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
-      reacquire_times.push_back(reacquire_ms);
+      redetect_times.push_back(redetect_ms);
     }
     nlohmann::json line;
     line["frame"] = index;
     line["latency_us"] = seconds * 1e6;
-    if (reacquire_ms > 0.0) line["reacquire_ms"] = reacquire_ms;
+    if (redetect) {
+      line["redetect"] = {{"ms", redetect_ms},
+                          {"detected", association.detected},
+                          {"matched", association.matched},
+                          {"restarted", association.restarted},
+                          {"shift", point(association.shift)}};
+    }
     nlohmann::json whiskers = nlohmann::json::array();
     for (int w = 0; w < tracker->num_whiskers(); ++w) {
       const rt::Tracker& t = tracker->whisker(w);
@@ -196,11 +205,10 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     std::cout << "\n  latency per frame (all whiskers): median " << percentile(latencies, 0.5)
               << " us, p99 " << percentile(latencies, 0.99) << " us; detection " << detect_ms
               << " ms\n";
-    if (!reacquire_times.empty()) {
-      std::cout << "  re-acquisition (detection on frames with a lost whisker, outside the "
-                   "real-time path): "
-                << reacquire_times.size() << " frames, median " << percentile(reacquire_times, 0.5)
-                << " ms\n";
+    if (!redetect_times.empty()) {
+      std::cout << "  detection again (--redetect " << args.redetect
+                << ", outside the real-time path): " << redetect_times.size()
+                << " frames, median " << percentile(redetect_times, 0.5) << " ms\n";
     }
     std::cout << "  results: " << args.out << "\n";
     if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";

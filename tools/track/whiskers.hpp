@@ -2,7 +2,7 @@
 /// sinew-track --whiskers: finds every whisker on the first frame (rt::detect_whiskers) and tracks
 /// them all (rt::WhiskerTracker). One JSON line per frame:
 /// {"frame", "latency_us", "whiskers": [{"id", "status", "nodes": [[x, y, θ]...], "follicle",
-/// "tip", "length_px", "inlier_fraction"}]}; the first line before the frames is the detection
+/// "tip", "length_px", "inlier_fraction", ...}], "detect_ms"}; the first line before the frames is the detection
 /// record {"detection": {...}}.
 
 #include <string>
@@ -14,6 +14,10 @@ struct WhiskerTrackArgs {
   int first = 0, stride = 1, count = -1;
   bool quiet = false;
   double min_length_px = 40.0;
+  /// Detection after tracking, for rt::WhiskerTracker::associate: "every" frame (a 25–100 fps
+  /// camera, whose whiskers move further between frames than the search reaches), only on frames
+  /// with a "lost" whisker (a high-speed camera), or "never".
+  std::string redetect = "every";
 };
 
 /// Runs it; throws InputError on bad input. Returns the exit status.
