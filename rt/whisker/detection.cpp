@@ -267,13 +267,13 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     trace.points.push_back(p);
     trace.contrast.push_back(static_cast<float>(std::max(best, 0.0)));
     if (gap == 0) last_strong = trace.points.size() - 1;
-    // A whisker does not turn by more than 35° over 12 px (radius of curvature ≥ 20 px): a trace
-    // that does has left it (noise at a faint tip, a neighbour at a crossing).
+    // A whisker does not turn by more than max_turn_deg over 12 px: a trace that does has left it
+    // (noise at a faint tip, a neighbour where whiskers converge or cross).
     const std::size_t np = trace.points.size();
     if (np > 24) {
       const Eigen::Vector2d recent = trace.points[np - 1] - trace.points[np - 13];
       const Eigen::Vector2d before = trace.points[np - 13] - trace.points[np - 25];
-      if (recent.normalized().dot(before.normalized()) < std::cos(35.0 * M_PI / 180.0)) {
+      if (recent.normalized().dot(before.normalized()) < std::cos(o.max_turn_deg * M_PI / 180.0)) {
         last_strong = std::min(last_strong, np - 13);
         break;
       }
@@ -378,6 +378,8 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
   if (!(follow_contrast > 0.0)) {
     return field_error("follow_contrast", follow_contrast, "must be > 0");
   }
+  if (!(max_turn_deg > 0.0 && max_turn_deg < 180.0))
+    return field_error("max_turn_deg", max_turn_deg, "must be in (0, 180)");
   if (max_gap_px < 0) return field_error("max_gap_px", max_gap_px, "must be >= 0");
   if (!(seed_noise_factor >= 0.0)) {
     return field_error("seed_noise_factor", seed_noise_factor, "must be >= 0");
