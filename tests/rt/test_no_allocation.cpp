@@ -12,6 +12,7 @@
 
 #include "common/beam/static_solver.hpp"
 #include "rt/tracker.hpp"
+#include "rt/whisker/readout.hpp"
 #include "rt/whisker/whisker_tracker.hpp"
 // The one translation unit of this executable that includes it: malloc and operator new hooks.
 #include "tests/support/allocation_counter.hpp"
@@ -207,17 +208,30 @@ TEST(NoAllocation, TenWhiskers) {
   WhiskerTracker tracker(init);
   ASSERT_TRUE(tracker.valid()) << tracker.error();
   tracker.track(frames[0].view());
+  // The read-out (angle, curvature, follicle reaction in SI units) of every whisker every frame.
+  std::vector<WhiskerReadoutModel> readouts;
+  WhiskerReadoutOptions ro;
+  ro.physics.mm_per_px = 0.05;
+  ro.physics.base_radius_um = 40.0;
+  ro.physics.tip_radius_um = 2.0;
+  for (int w = 0; w < tracker.num_whiskers(); ++w) {
+    readouts.emplace_back(tracker.whisker(w).model(), ro);
+    ASSERT_TRUE(readouts.back().valid()) << readouts.back().error();
+  }
   Eigen::internal::set_is_malloc_allowed(false);
   sinew::testing::AllocationCounter counter;
   int ok = 0, lost = 0;
+  double moments = 0.0;
   for (int k = 1; k < 300; ++k) {
     tracker.track(frames[k % 25].view());
     for (int w = 0; w < tracker.num_whiskers(); ++w) {
       ok += tracker.result(w).status == FrameStatus::kOk;
       lost += tracker.result(w).status == FrameStatus::kLost;
+      moments += std::abs(readouts[w].evaluate(tracker.whisker(w).state()).moment);
     }
   }
   counter.stop();
+  EXPECT_TRUE(std::isfinite(moments));
   Eigen::internal::set_is_malloc_allowed(true);
   EXPECT_EQ(counter.mallocs(), 0);
   EXPECT_EQ(counter.news(), 0);

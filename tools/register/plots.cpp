@@ -1,5 +1,7 @@
 #include "tools/register/plots.hpp"
 
+#include "tools/io/png_plot.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,66 +11,8 @@
 #include <opencv2/imgproc.hpp>
 
 namespace sinew::tools {
-namespace {
 
-const cv::Scalar kInk(40, 40, 40), kGrid(220, 220, 220), kBlue(200, 90, 30), kRed(40, 40, 210),
-    kGreen(60, 160, 60);
-
-std::string number(double v) {
-  char s[32];
-  std::snprintf(s, sizeof(s), "%.3g", v);
-  return s;
-}
-
-void text(cv::Mat& image, const std::string& s, cv::Point at, double size = 0.45,
-          cv::Scalar colour = kInk) {
-  cv::putText(image, s, at, cv::FONT_HERSHEY_SIMPLEX, size, colour, 1, cv::LINE_AA);
-}
-
-// Atomic PNG: encode, write a temporary file, rename.
-bool save(const std::string& path, const cv::Mat& image, std::string* error) {
-  std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", image, bytes)) {
-    if (error != nullptr) *error = path + ": PNG encoding failed";
-    return false;
-  }
-  const std::string tmp = path + ".tmp";
-  FILE* f = std::fopen(tmp.c_str(), "wb");
-  const bool ok = f != nullptr && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  if (f != nullptr && std::fclose(f) != 0) return false;
-  std::error_code ec;
-  if (ok) std::filesystem::rename(tmp, path, ec);
-  if (!ok || ec) {
-    if (error != nullptr) *error = path + ": cannot write";
-    return false;
-  }
-  return true;
-}
-
-// A panel's frame: plot area [x0, x1] x [y0, y1] in pixels for data [u0, u1] x [v0, v1].
-struct Panel {
-  cv::Rect area;
-  double u0, u1, v0, v1;
-  cv::Point at(double u, double v) const {
-    const double x = area.x + (u - u0) / std::max(u1 - u0, 1e-300) * area.width;
-    const double y = area.y + area.height - (v - v0) / std::max(v1 - v0, 1e-300) * area.height;
-    return {static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y))};
-  }
-  void axes(cv::Mat& image, const std::string& title, bool log_v) const {
-    cv::rectangle(image, area, kInk, 1);
-    // Log scales: one line per decade (v0, v1 are whole decades); linear: quarters.
-    const int steps = log_v ? std::max(1, static_cast<int>(std::lround(v1 - v0))) : 4;
-    for (int k = 0; k <= steps; ++k) {
-      const double v = v0 + (v1 - v0) * k / steps;
-      const cv::Point p = at(u0, v);
-      cv::line(image, p, at(u1, v), kGrid, 1);
-      text(image, log_v ? "1e" + number(v) : number(v), {5, p.y + 4}, 0.4);
-    }
-    text(image, title, {area.x, area.y - 8}, 0.5);
-  }
-};
-
-}  // namespace
+using namespace plot;
 
 bool write_error_histogram_png(const std::string& path, const std::vector<double>& errors,
                                const std::string& unit, std::string* error) {
@@ -97,7 +41,7 @@ bool write_error_histogram_png(const std::string& path, const std::vector<double
          panel.at(top * k / 4.0, 0) + cv::Point(k == 4 ? -40 : -10, 18), 0.4);
   }
   text(image, "error (" + unit + "), max " + number(largest), {220, 345}, 0.45);
-  return save(path, image, error);
+  return save_png(path, image, error);
 }
 
 bool write_convergence_png(const std::string& path,
@@ -146,7 +90,7 @@ bool write_convergence_png(const std::string& path,
   text(image,
        "iteration (" + std::to_string(iterations.size()) + " rows: initial fit, then Gauss-Newton)",
        {150, 505}, 0.45);
-  return save(path, image, error);
+  return save_png(path, image, error);
 }
 
 }  // namespace sinew::tools

@@ -486,6 +486,9 @@ int main(int argc, char** argv) {
   std::string face = "auto";
   double min_length = 40.0;
   std::string redetect = "every";
+  sinew::rt::WhiskerReadoutOptions readout;
+  std::vector<double> curvature_window;
+  std::string csv;
   app.add_flag("--whiskers", whiskers,
                "find every whisker leaving the face on the first frame and track them all "
                "(no --init)");
@@ -498,6 +501,30 @@ int main(int argc, char** argv) {
                  "below ~200 fps, whose whiskers move further than the search reaches), only on "
                  "frames with a lost whisker (high-speed cameras), or never")
       ->check(CLI::IsMember({"every", "lost", "never"}));
+  app.add_option("--mm-per-px", readout.physics.mm_per_px,
+                 "--whiskers: image scale; with it moments, forces and curvatures are in SI "
+                 "units (needs --base-radius-um)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--young-modulus-gpa", readout.physics.young_modulus_gpa,
+                 "--whiskers: Young's modulus (default 3.34, rat vibrissae, Quist et al. 2011)");
+  app.add_option("--base-radius-um", readout.physics.base_radius_um,
+                 "--whiskers: whisker radius at the follicle, micrometres");
+  app.add_option("--tip-radius-um", readout.physics.tip_radius_um,
+                 "--whiskers: whisker radius at the tip, micrometres (default 0)");
+  app.add_option("--whisker-length-mm", readout.physics.length_mm,
+                 "--whiskers: full whisker length for the taper (default: the tracked length)");
+  app.add_option("--axis-angle-deg", readout.axis_angle_deg,
+                 "--whiskers: the head axis in the image, degrees from +x towards +y; base "
+                 "angles are measured from it");
+  app.add_option("--curvature-window", curvature_window,
+                 "--whiskers: arc-length window from the follicle for the curvature, pixels "
+                 "(two numbers, default 0 30)")
+      ->expected(2);
+  app.add_option("--csv", csv, "--whiskers: also write one row per whisker per frame (CSV)");
+  std::string plots;
+  app.add_option("--plots", plots,
+                 "--whiskers: folder for per-whisker time series (base angle, curvature change, "
+                 "moment at the follicle; PNG)");
   app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)")->required();
   app.add_option("--overlay", args.overlay, "folder for overlay PNGs, or a .mp4/.avi file");
   app.add_option("--stride", args.stride, "process every K-th frame")->check(CLI::PositiveNumber);
@@ -536,6 +563,13 @@ int main(int argc, char** argv) {
       w.quiet = args.quiet;
       w.min_length_px = min_length;
       w.redetect = redetect;
+      if (!curvature_window.empty()) {
+        readout.curvature_from_px = curvature_window[0];
+        readout.curvature_to_px = curvature_window[1];
+      }
+      w.readout = readout;
+      w.csv = csv;
+      w.plots = plots;
       return tools::run_whiskers(w);
     }
     if (args.init.empty()) throw tools::InputError("--init is required (or --whiskers)");

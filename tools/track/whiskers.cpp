@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -17,6 +18,7 @@
 #include "tools/io/json_file.hpp"
 #include "tools/track/frame_source.hpp"
 #include "tools/track/overlay_sink.hpp"
+#include "tools/track/whisker_plots.hpp"
 
 namespace sinew::tools {
 
@@ -81,7 +83,25 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   if (!out) throw InputError(args.out + ": cannot open file for writing");
   OverlaySink overlay(args.overlay);
 
+  if (auto err = args.readout.validate()) throw InputError(*err);
+  const bool si = args.readout.physics.si();
+  // Column names carry their units, so that a CSV or JSON reader needs no legend.
+  const std::string curvature_key = si ? "curvature_per_mm" : "curvature_per_px";
+  const std::string delta_key = si ? "delta_curvature_per_mm" : "delta_curvature_per_px";
+  const std::string moment_key = si ? "m0_N_m" : "m0_model";
+  std::ofstream csv;
+  if (!args.csv.empty()) {
+    csv.open(args.csv + ".tmp");
+    if (!csv) throw InputError(args.csv + ": cannot open file for writing");
+    csv << "frame,id,status,follicle_x_px,follicle_y_px,tip_x_px,tip_y_px,length_px,"
+           "base_angle_deg,"
+        << curvature_key << "," << delta_key << "," << moment_key << "\n";
+    csv.precision(9);
+  }
+
   std::optional<rt::WhiskerTracker> tracker;
+  std::vector<rt::WhiskerReadoutModel> readouts;
+  std::vector<WhiskerSeries> series;
   std::vector<double> latencies, redetect_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
@@ -114,7 +134,16 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                               {"seed_contrast", found.seed_contrast},
                               {"follow_contrast", found.follow_contrast},
                               {"seconds", detect_ms * 1e-3},
-                              {"whiskers", record}}}}
+                              {"whiskers", record},
+                              {"readout",
+                               {{"mm_per_px", args.readout.physics.mm_per_px},
+                                {"young_modulus_gpa", args.readout.physics.young_modulus_gpa},
+                                {"base_radius_um", args.readout.physics.base_radius_um},
+                                {"tip_radius_um", args.readout.physics.tip_radius_um},
+                                {"length_mm", args.readout.physics.length_mm},
+                                {"axis_angle_deg", args.readout.axis_angle_deg},
+                                {"curvature_window_px",
+                                 {args.readout.curvature_from_px, args.readout.curvature_to_px}}}}}}}
                  .dump()
           << "\n";
       if (!args.quiet) {
@@ -128,9 +157,22 @@ int run_whiskers(const WhiskerTrackArgs& args) {
       track_options.tracker.ridge_min_background = detect_options.dark_fraction * found.backlight;
       tracker.emplace(traces, track_options);
       if (!tracker->valid()) throw InputError(args.input + ": " + tracker->error());
+      for (int w = 0; w < tracker->num_whiskers(); ++w) {
+        readouts.emplace_back(tracker->whisker(w).model(), args.readout);
+        if (!readouts.back().valid()) {
+          throw InputError("whisker " + std::to_string(w) + ": " + readouts.back().error());
+        }
+        series.emplace_back();
+        series.back().id = w;
+      }
     }
     const double seconds = tracker->track(view);
     latencies.push_back(seconds * 1e6);
+    // The first frame's fits are the whiskers at rest (Δκ and M0 are changes from them).
+    if (processed == 0) {
+      for (int w = 0; w < tracker->num_whiskers(); ++w)
+        readouts[w].set_rest(tracker->whisker(w).state());
+    }
     // Detection again, outside the real-time path: the whiskers are matched to it in their order
     // along the face, and lost or misplaced ones restart on theirs.
     double redetect_ms = 0.0;
@@ -167,16 +209,44 @@ int run_whiskers(const WhiskerTrackArgs& args) {
       }
       const std::string status = rt::to_string(r.status);
       ++statuses[status];
-      whiskers.push_back({{"id", w},
-                          {"status", status},
-                          {"nodes", nodes},
-                          {"follicle", point(r.follicle)},
-                          {"tip", point(r.tip)},
-                          {"length_px", r.length_px},
-                          {"on_neighbour", r.on_neighbour},
-                          {"jumped", r.jumped},
-                          {"reacquired", r.reacquired},
-                          {"inlier_fraction", r.summary.inlier_fraction}});
+      nlohmann::json record = {{"id", w},
+                               {"status", status},
+                               {"nodes", nodes},
+                               {"follicle", point(r.follicle)},
+                               {"tip", point(r.tip)},
+                               {"length_px", r.length_px},
+                               {"on_neighbour", r.on_neighbour},
+                               {"jumped", r.jumped},
+                               {"reacquired", r.reacquired},
+                               {"inlier_fraction", r.summary.inlier_fraction}};
+      // The read-out of a lost whisker's last state would be stale: none.
+      WhiskerSeries& ts = series[w];
+      ts.frame.push_back(index);
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      ts.base_angle_deg.push_back(nan);
+      ts.delta_curvature.push_back(nan);
+      ts.moment.push_back(nan);
+      // Nor of a whisker placed on its detection without a fit (not converged): its node
+      // rotations are the detection's chords', not an equilibrium's.
+      if (r.status == rt::FrameStatus::kOk) {
+        const rt::WhiskerReadout q = readouts[w].evaluate(t.state());
+        ts.base_angle_deg.back() = q.base_angle_deg;
+        ts.delta_curvature.back() = q.delta_curvature;
+        ts.moment.back() = q.moment;
+        record["base_angle_deg"] = q.base_angle_deg;
+        record[curvature_key] = q.curvature;
+        record[delta_key] = q.delta_curvature;
+        record[moment_key] = q.moment;
+        if (csv.is_open()) {
+          csv << index << "," << w << "," << status << "," << r.follicle.x() << ","
+              << r.follicle.y() << "," << r.tip.x() << "," << r.tip.y() << "," << r.length_px
+              << "," << q.base_angle_deg << "," << q.curvature << "," << q.delta_curvature << ","
+              << q.moment << "\n";
+        }
+      } else if (csv.is_open()) {
+        csv << index << "," << w << "," << status << ",,,,,,,,,\n";
+      }
+      whiskers.push_back(std::move(record));
     }
     line["whiskers"] = whiskers;
     out << line.dump() << "\n";
@@ -195,9 +265,24 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   out.close();
   if (processed == 0) {
     std::filesystem::remove(args.out + ".tmp");
+    if (csv.is_open()) {
+      csv.close();
+      std::filesystem::remove(args.csv + ".tmp");
+    }
     throw InputError(args.input + ": no frame to process (check --first/--count)");
   }
   std::filesystem::rename(args.out + ".tmp", args.out);
+  if (csv.is_open()) {
+    csv.close();
+    std::filesystem::rename(args.csv + ".tmp", args.csv);
+  }
+  if (!args.plots.empty()) {
+    std::string error;
+    if (!write_whisker_plots(args.plots, series, si ? "1/mm" : "1/px", si ? "N m" : "model units",
+                             &error)) {
+      throw InputError(error);
+    }
+  }
   if (!args.quiet) {
     std::cout << "sinew-track: " << processed << " frames, " << tracker->num_whiskers()
               << " whiskers from " << source.description() << "\n  whisker-frames:";
@@ -212,6 +297,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     }
     std::cout << "  results: " << args.out << "\n";
     if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
+    if (!args.csv.empty()) std::cout << "  table: " << args.csv << "\n";
+    if (!args.plots.empty()) std::cout << "  plots: " << args.plots << "/whisker_<id>.png\n";
   }
   return 0;
 }

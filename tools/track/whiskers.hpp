@@ -7,6 +7,8 @@
 
 #include <string>
 
+#include "rt/whisker/readout.hpp"
+
 namespace sinew::tools {
 
 struct WhiskerTrackArgs {
@@ -18,6 +20,12 @@ struct WhiskerTrackArgs {
   /// camera, whose whiskers move further between frames than the search reaches), only on frames
   /// with a "lost" whisker (a high-speed camera), or "never".
   std::string redetect = "every";
+  /// The read-out: physics (scale, material, taper), head axis, curvature window; and a CSV file
+  /// with one row per whisker per frame (empty: none).
+  rt::WhiskerReadoutOptions readout;
+  std::string csv;
+  /// Folder for per-whisker time-series PNGs (empty: none).
+  std::string plots;
 };
 
 /// Runs it; throws InputError on bad input. Returns the exit status.

@@ -1,0 +1,69 @@
+"""Reads sinew-track --whiskers' CSV table (and its plots) the way a whisker lab's Python does, and
+checks it: the documented columns with their units, one row per whisker per frame, read-out values
+on every ok row and none on the others, ids and frames as in the JSON Lines, SI magnitudes of a
+hair.
+  whisker_table_check.py --csv T.csv --jsonl R.jsonl --plots DIR
+"""
+import argparse
+import json
+import math
+import os
+import sys
+
+import pandas as pd
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--csv", required=True)
+    ap.add_argument("--jsonl", required=True)
+    ap.add_argument("--plots", required=True)
+    a = ap.parse_args()
+    d = pd.read_csv(a.csv)
+    want = ["frame", "id", "status", "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px",
+            "length_px", "base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m"]
+    failures = []
+    if list(d.columns) != want:
+        failures.append(f"columns {list(d.columns)}, expected {want}")
+    frames = {}
+    with open(a.jsonl) as f:
+        for line in f:
+            rec = json.loads(line)
+            if "frame" in rec:
+                frames[rec["frame"]] = rec["whiskers"]
+    rows = sum(len(w) for w in frames.values())
+    if len(d) != rows:
+        failures.append(f"{len(d)} rows, the JSON Lines have {rows} whisker-frames")
+    ok = d[d.status == "ok"]
+    others = d[d.status != "ok"]
+    values = ["base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m"]
+    if ok[values].isna().any().any():
+        failures.append("an ok row lacks a read-out value")
+    if not others[values].isna().all().all():
+        failures.append("a lost or not-converged row has read-out values")
+    # The JSON record of each ok whisker-frame carries the same numbers.
+    for _, r in ok.head(50).iterrows():
+        w = next(w for w in frames[int(r.frame)] if w["id"] == int(r.id))
+        if not math.isclose(w["m0_N_m"], r.m0_N_m, rel_tol=1e-6, abs_tol=1e-18):
+            failures.append(f"frame {r.frame} whisker {r.id}: m0 {r.m0_N_m} vs JSON {w['m0_N_m']}")
+            break
+    # The first frame is the rest: Δκ and M0 zero there; later a hair's moments are far below
+    # 1e-4 N m (a 40 µm whisker bent to a 1 mm radius carries ~2e-6 N m).
+    first = ok[ok.frame == ok.frame.min()]
+    if (first[["delta_curvature_per_mm", "m0_N_m"]].abs() > 1e-12).any().any():
+        failures.append("the first frame's delta_curvature or m0 is not 0")
+    if (ok.m0_N_m.abs() > 1e-4).any():
+        failures.append(f"moments up to {ok.m0_N_m.abs().max()} N m: not a hair's")
+    for i in sorted(d.id.unique()):
+        png = os.path.join(a.plots, f"whisker_{i}.png")
+        if not os.path.isfile(png) or os.path.getsize(png) < 1000:
+            failures.append(f"{png} missing")
+    print(f"{len(d)} rows, {len(ok)} ok, {d.id.nunique()} whiskers; M0 median |{ok.m0_N_m.abs().median():.3g}| N m,"
+          f" base angle {ok.base_angle_deg.min():.1f}..{ok.base_angle_deg.max():.1f} deg")
+    for f in failures:
+        print("FAIL:", f)
+    sys.exit(1 if failures else 0)
+
+
+if __name__ == "__main__":
+    main()
