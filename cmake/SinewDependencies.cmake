@@ -31,6 +31,10 @@ if(SINEW_BUILD_TOOLS)
   find_package(nlohmann_json 3 REQUIRED)
   find_package(CLI11 REQUIRED)
   find_package(fmt REQUIRED)
+  # sinew-track --hdf5: whisker tables for h5py/pandas. By pkg-config: CMake's FindHDF5 needs the C
+  # language enabled.
+  find_package(PkgConfig REQUIRED)
+  pkg_check_modules(HDF5 REQUIRED IMPORTED_TARGET hdf5)
 endif()
 
 if(SINEW_BUILD_TESTS)

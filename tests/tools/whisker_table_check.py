@@ -1,8 +1,9 @@
-"""Reads sinew-track --whiskers' CSV table (and its plots) the way a whisker lab's Python does, and
-checks it: the documented columns with their units, one row per whisker per frame, read-out values
-on every ok row and none on the others, ids and frames as in the JSON Lines, SI magnitudes of a
-hair.
-  whisker_table_check.py --csv T.csv --jsonl R.jsonl --plots DIR
+"""Reads sinew-track --whiskers' CSV table, HDF5 file and plots the way a whisker lab's Python
+does (pandas, h5py), and checks them: the documented columns with their units, one row per whisker
+per frame, read-out values on every ok row and none on the others, ids and frames as in the JSON
+Lines, SI magnitudes of a hair; the HDF5 summary equal to the CSV and its centrelines equal to the
+JSON Lines' nodes.
+  whisker_table_check.py --csv T.csv --hdf5 T.h5 --jsonl R.jsonl --plots DIR
 """
 import argparse
 import json
@@ -10,6 +11,8 @@ import math
 import os
 import sys
 
+import h5py
+import numpy as np
 import pandas as pd
 
 
@@ -18,6 +21,7 @@ def main():
     ap.add_argument("--csv", required=True)
     ap.add_argument("--jsonl", required=True)
     ap.add_argument("--plots", required=True)
+    ap.add_argument("--hdf5", required=True)
     a = ap.parse_args()
     d = pd.read_csv(a.csv)
     want = ["frame", "id", "status", "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px",
@@ -58,6 +62,31 @@ def main():
         png = os.path.join(a.plots, f"whisker_{i}.png")
         if not os.path.isfile(png) or os.path.getsize(png) < 1000:
             failures.append(f"{png} missing")
+    with h5py.File(a.hdf5, "r") as f:
+        h = pd.DataFrame(f["summary"][:])
+        h["status"] = h.status.str.decode("ascii")
+        if list(h.columns) != want:
+            failures.append(f"HDF5 summary columns {list(h.columns)}, expected {want}")
+        elif not ((h.frame.to_numpy() == d.frame.to_numpy()).all() and
+                  (h.id.to_numpy() == d.id.to_numpy()).all() and
+                  (h.status.to_numpy() == d.status.to_numpy()).all() and
+                  np.allclose(h[want[3:]].to_numpy(), d[want[3:]].to_numpy(), rtol=1e-7,
+                              atol=1e-12, equal_nan=True)):
+            failures.append("the HDF5 summary differs from the CSV table")
+        order = sorted(frames)
+        if list(f["frame"][:]) != order:
+            failures.append("HDF5 /frame differs from the JSON Lines' frames")
+        for i in sorted(d.id.unique()):
+            c = f[f"centrelines/whisker_{i}"][:]
+            for k, fr in enumerate(order):
+                w = next(w for w in frames[fr] if w["id"] == i)
+                if w["status"] == "lost":
+                    if not np.isnan(c[k]).all():
+                        failures.append(f"whisker {i} frame {fr}: lost but HDF5 nodes are set")
+                        break
+                elif not np.allclose(c[k], np.array(w["nodes"]), rtol=1e-9, atol=1e-9):
+                    failures.append(f"whisker {i} frame {fr}: HDF5 nodes differ from the JSON")
+                    break
     print(f"{len(d)} rows, {len(ok)} ok, {d.id.nunique()} whiskers; M0 median |{ok.m0_N_m.abs().median():.3g}| N m,"
           f" base angle {ok.base_angle_deg.min():.1f}..{ok.base_angle_deg.max():.1f} deg")
     for f in failures:

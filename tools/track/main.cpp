@@ -521,7 +521,10 @@ int main(int argc, char** argv) {
                  "(two numbers, default 0 30)")
       ->expected(2);
   app.add_option("--csv", csv, "--whiskers: also write one row per whisker per frame (CSV)");
-  std::string plots;
+  std::string plots, hdf5;
+  app.add_option("--hdf5", hdf5,
+                 "--whiskers: also write the table and the full centrelines (HDF5, for h5py and "
+                 "pandas)");
   app.add_option("--plots", plots,
                  "--whiskers: folder for per-whisker time series (base angle, curvature change, "
                  "moment at the follicle; PNG)");
@@ -570,6 +573,7 @@ int main(int argc, char** argv) {
       w.readout = readout;
       w.csv = csv;
       w.plots = plots;
+      w.hdf5 = hdf5;
       return tools::run_whiskers(w);
     }
     if (args.init.empty()) throw tools::InputError("--init is required (or --whiskers)");

@@ -8,6 +8,8 @@
 #include <iostream>
 #include <limits>
 #include <map>
+#include <memory>
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -18,6 +20,7 @@
 #include "tools/io/json_file.hpp"
 #include "tools/track/frame_source.hpp"
 #include "tools/track/overlay_sink.hpp"
+#include "tools/track/whisker_hdf5.hpp"
 #include "tools/track/whisker_plots.hpp"
 
 namespace sinew::tools {
@@ -89,19 +92,24 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   const std::string curvature_key = si ? "curvature_per_mm" : "curvature_per_px";
   const std::string delta_key = si ? "delta_curvature_per_mm" : "delta_curvature_per_px";
   const std::string moment_key = si ? "m0_N_m" : "m0_model";
+  const std::vector<std::string> value_columns = {
+      "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px", "length_px", "base_angle_deg",
+      curvature_key,   delta_key,       moment_key};
   std::ofstream csv;
   if (!args.csv.empty()) {
     csv.open(args.csv + ".tmp");
     if (!csv) throw InputError(args.csv + ": cannot open file for writing");
-    csv << "frame,id,status,follicle_x_px,follicle_y_px,tip_x_px,tip_y_px,length_px,"
-           "base_angle_deg,"
-        << curvature_key << "," << delta_key << "," << moment_key << "\n";
+    csv << "frame,id,status";
+    for (const std::string& c : value_columns) csv << "," << c;
+    csv << "\n";
     csv.precision(9);
   }
+  std::unique_ptr<WhiskerHdf5Writer> hdf5;
 
   std::optional<rt::WhiskerTracker> tracker;
   std::vector<rt::WhiskerReadoutModel> readouts;
   std::vector<WhiskerSeries> series;
+  std::vector<std::vector<double>> centrelines;
   std::vector<double> latencies, redetect_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
@@ -164,6 +172,24 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         }
         series.emplace_back();
         series.back().id = w;
+      }
+      if (!args.hdf5.empty()) {
+        std::vector<int> nodes;
+        for (int w = 0; w < tracker->num_whiskers(); ++w)
+          nodes.push_back(tracker->whisker(w).num_nodes());
+        hdf5 = std::make_unique<WhiskerHdf5Writer>(args.hdf5, value_columns, nodes);
+        centrelines.resize(nodes.size());
+        hdf5->attribute("source", args.input);
+        hdf5->attribute("units", si ? "lengths px (follicle, tip, nodes), curvature 1/mm, moment N m"
+                                    : "lengths px, curvature 1/px, moment pixel model units");
+        hdf5->attribute("readout", nlohmann::json{{"mm_per_px", args.readout.physics.mm_per_px},
+                                                  {"young_modulus_gpa",
+                                                   args.readout.physics.young_modulus_gpa},
+                                                  {"base_radius_um",
+                                                   args.readout.physics.base_radius_um},
+                                                  {"tip_radius_um", args.readout.physics.tip_radius_um},
+                                                  {"axis_angle_deg", args.readout.axis_angle_deg}}
+                                       .dump());
       }
     }
     const double seconds = tracker->track(view);
@@ -228,6 +254,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
       ts.moment.push_back(nan);
       // Nor of a whisker placed on its detection without a fit (not converged): its node
       // rotations are the detection's chords', not an equilibrium's.
+      std::vector<double> values(value_columns.size(), nan);
       if (r.status == rt::FrameStatus::kOk) {
         const rt::WhiskerReadout q = readouts[w].evaluate(t.state());
         ts.base_angle_deg.back() = q.base_angle_deg;
@@ -237,18 +264,33 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         record[curvature_key] = q.curvature;
         record[delta_key] = q.delta_curvature;
         record[moment_key] = q.moment;
-        if (csv.is_open()) {
-          csv << index << "," << w << "," << status << "," << r.follicle.x() << ","
-              << r.follicle.y() << "," << r.tip.x() << "," << r.tip.y() << "," << r.length_px
-              << "," << q.base_angle_deg << "," << q.curvature << "," << q.delta_curvature << ","
-              << q.moment << "\n";
+        values = {r.follicle.x(), r.follicle.y(), r.tip.x(),   r.tip.y(),        r.length_px,
+                  q.base_angle_deg, q.curvature, q.delta_curvature, q.moment};
+      }
+      if (csv.is_open()) {
+        csv << index << "," << w << "," << status;
+        for (double v : values) {
+          csv << ",";
+          if (std::isfinite(v)) csv << v;
         }
-      } else if (csv.is_open()) {
-        csv << index << "," << w << "," << status << ",,,,,,,,,\n";
+        csv << "\n";
+      }
+      if (hdf5) {
+        hdf5->add_row(index, w, status, values);
+        std::vector<double>& c = centrelines[w];
+        c.resize(3 * t.num_nodes());
+        for (int i = 0; i < t.num_nodes(); ++i) {
+          const bool lost = r.status == rt::FrameStatus::kLost;
+          const Eigen::Vector2d x = t.node_position(i);
+          c[3 * i] = lost ? nan : x.x();
+          c[3 * i + 1] = lost ? nan : x.y();
+          c[3 * i + 2] = lost ? nan : t.state()[3 * i + 2];
+        }
       }
       whiskers.push_back(std::move(record));
     }
     line["whiskers"] = whiskers;
+    if (hdf5) hdf5->add_frame(index, centrelines);
     out << line.dump() << "\n";
 
     if (overlay.enabled()) {
@@ -276,6 +318,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     csv.close();
     std::filesystem::rename(args.csv + ".tmp", args.csv);
   }
+  if (hdf5) hdf5->finish();
   if (!args.plots.empty()) {
     std::string error;
     if (!write_whisker_plots(args.plots, series, si ? "1/mm" : "1/px", si ? "N m" : "model units",
@@ -298,6 +341,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     std::cout << "  results: " << args.out << "\n";
     if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
     if (!args.csv.empty()) std::cout << "  table: " << args.csv << "\n";
+    if (!args.hdf5.empty()) std::cout << "  HDF5: " << args.hdf5 << "\n";
     if (!args.plots.empty()) std::cout << "  plots: " << args.plots << "/whisker_<id>.png\n";
   }
   return 0;

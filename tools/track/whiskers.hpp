@@ -26,6 +26,8 @@ struct WhiskerTrackArgs {
   std::string csv;
   /// Folder for per-whisker time-series PNGs (empty: none).
   std::string plots;
+  /// HDF5 file with the table and the full centrelines (tools/track/whisker_hdf5.hpp; empty: none).
+  std::string hdf5;
 };
 
 /// Runs it; throws InputError on bad input. Returns the exit status.
