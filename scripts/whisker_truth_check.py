@@ -50,6 +50,10 @@ def main():
     ap.add_argument("--min-length-px", type=float, default=40.0)
     ap.add_argument("--require-found", action="store_true",
                     help="every true whisker longer than --min-length-px found on frame 0")
+    ap.add_argument("--max-contact-arc-px", type=float, default=None,
+                    help="require every true contact frame reported touching (but for one frame "
+                         "at each onset and offset), no touch reported more than one frame from a "
+                         "true one, and the median contact point within this arc length")
     ap.add_argument("--require-good", type=float, default=0.0,
                     help="fraction of whisker-frames that must be good")
     ap.add_argument("--max-base-px", type=float, default=float("inf"),
@@ -91,6 +95,8 @@ def main():
           f"found; {len(first['whiskers']) - len(match)} reported whiskers match none")
 
     total = good = swaps = ok = 0
+    # Contact, per matched whisker: frames reported touching / truly touching, arc errors.
+    said, true_contact, arc_errors = {}, {}, []
     curve, base, per_curve = [], {}, {}
     worst_swap = None
     for rec in results:
@@ -103,6 +109,14 @@ def main():
             total += 1
             pts = samples(w["nodes"])
             d_own = float(np.mean(distance_to_polyline(pts, tpolys[k])))
+            if "contact" in w:
+                tc = tf[k].get("contact")
+                if w["contact"]:
+                    said.setdefault(k, set()).add(rec["frame"])
+                if tc:
+                    true_contact.setdefault(k, set()).add(rec["frame"])
+                if w["contact"] and tc:
+                    arc_errors.append(abs(w["contact_arc_length_px"] - tc["arc_length_px"]))
             if w["status"] == "ok":
                 ok += 1
                 curve.append(d_own)
@@ -134,7 +148,30 @@ def main():
               ", ".join(f"{i}: {v:.2f}" for i, v in sorted(base_medians.items())))
     print(f"identity swaps: {swaps}" + (f" (first: frame {worst_swap[0]}, id {worst_swap[1]})"
                                         if worst_swap else ""))
+    # A touch reported within one frame of a true one is onset/offset timing, not a false contact.
+    missed_c = spurious_c = edge = 0
+    for k in set(said) | set(true_contact):
+        t, r = true_contact.get(k, set()), said.get(k, set())
+        near = {f + d for f in t for d in (-1, 0, 1)}
+        spurious_c += len(r - near)
+        for f in t - r:
+            if (f - 1 in t) and (f + 1 in t):
+                missed_c += 1  # inside a contact interval
+            else:
+                edge += 1
+    if true_contact or said:
+        print(f"contact: {sum(len(v) for v in true_contact.values())} true whisker-frames, "
+              f"{sum(len(v) for v in said.values())} reported; missed inside an interval "
+              f"{missed_c}, at an onset/offset {edge}; reported > 1 frame from a true contact "
+              f"{spurious_c}; contact point error along the whisker median "
+              f"{np.median(arc_errors) if arc_errors else float('nan'):.2f} px, max "
+              f"{max(arc_errors) if arc_errors else float('nan'):.2f} px")
     failed = []
+    if args.max_contact_arc_px is not None:
+        if missed_c or spurious_c:
+            failed.append(f"contact: {missed_c} missed, {spurious_c} spurious")
+        if not arc_errors or np.median(arc_errors) > args.max_contact_arc_px:
+            failed.append("contact point error")
     if args.require_found and len(found) < len(long_truth):
         failed.append("not every whisker found")
     if frac_good < args.require_good:

@@ -65,6 +65,9 @@ struct WhiskerDetectionOptions {
   double min_length_px = 40.0;
   /// The face and other objects: smoothed intensity below this fraction of the backlight, (0, 1).
   double dark_fraction = 0.35;
+  /// Objects a whisker can touch (object_distance): lightly smoothed intensity below this
+  /// fraction of the backlight, in regions that come no nearer the face than 2 pad_band_px, (0, 1).
+  double object_fraction = 0.4;
   /// Seeds lie within this distance of the face's edge, pixels, > 1.
   double pad_band_px = 10.0;
   /// A trace whose points lie within this of a longer whisker over most of its length is that
@@ -91,6 +94,10 @@ struct WhiskerDetection {
   double noise_percent = 0.0;             ///< robust σ of the ridge contrast over the backlight
   double seed_contrast = 0.0;             ///< the seed and follow thresholds used, per cent
   double follow_contrast = 0.0;
+  /// Distance of every pixel (row-major, the frame's width × height) to the nearest dark object
+  /// that is not the face (a pole, a lick port: what a whisker can touch), pixels, capped at
+  /// 255; empty when there is no such object. See rt/whisker/contact.hpp.
+  std::vector<float> object_distance;
   std::string error;  ///< empty on success (bad options, no face found)
 };
 

@@ -9,7 +9,9 @@
 #include "common/beam/beam_model.hpp"
 #include "common/beam/static_solver.hpp"
 #include "rt/centreline.hpp"
+#include "rt/whisker/contact.hpp"
 #include "rt/whisker/readout.hpp"
+#include "rt/whisker/whisker_tracker.hpp"
 
 namespace sinew::rt {
 namespace {
@@ -183,6 +185,35 @@ TEST(WhiskerReadout, CurvatureDeltaCurvatureAndBaseAngleOfExactArcs) {
   // Model units: the moment is the first element's EI times its curvature change, about.
   const double EI = model.base_section().EI;
   EXPECT_NEAR(r.moment, -EI * (k_now - k_rest), 0.1 * EI * (k_now - k_rest));
+}
+
+TEST(WhiskerContact, FirstPointWithinReachOfAPoleAlongTheWhisker) {
+  // A straight whisker along y = 100 from x = 50; a pole of radius 8 whose surface is 1 px from
+  // its centreline at x = 150. Within 3.5 px of the surface from x = 150 − √(11.5² − 9²).
+  const std::vector<std::vector<Eigen::Vector2d>> init = {{{50.0, 100.0}, {250.0, 100.0}}};
+  const WhiskerTracker tracker(init);
+  ASSERT_TRUE(tracker.valid()) << tracker.error();
+  const int width = 320, height = 200;
+  auto pole_map = [&](const Eigen::Vector2d& centre, double radius) {
+    std::vector<float> d(static_cast<std::size_t>(width) * height);
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        d[static_cast<std::size_t>(y) * width + x] = static_cast<float>(
+            std::max(0.0, (Eigen::Vector2d(x, y) - centre).norm() - radius));
+      }
+    }
+    return d;
+  };
+  const auto touching = pole_map({150.0, 109.0}, 8.0);
+  const WhiskerContact c = find_contact(tracker.whisker(0), touching.data(), width, height, 3.5);
+  EXPECT_TRUE(c.touching);
+  EXPECT_NEAR(c.arc_length_px, 100.0 - std::sqrt(11.5 * 11.5 - 81.0), 0.6);
+  EXPECT_NEAR(c.distance_px, 1.0, 0.05);
+  const auto apart = pole_map({150.0, 120.0}, 8.0);  // 12 px off the centreline
+  const WhiskerContact none = find_contact(tracker.whisker(0), apart.data(), width, height, 3.5);
+  EXPECT_FALSE(none.touching);
+  EXPECT_NEAR(none.distance_px, 12.0, 0.05);
+  EXPECT_FALSE(find_contact(tracker.whisker(0), nullptr, width, height).touching);
 }
 
 TEST(WhiskerReadout, BadOptionsAreNamed) {

@@ -22,10 +22,15 @@ case "$case" in
     # 93.1 % (98.1 % / similar with OpenCV's SIMD paths off); every whisker found, no swap;
     # follicles (median per whisker) within 0.45 px but the faintest whisker's (5 grey levels),
     # 1.6 px.
-    good=0.95 base=2.0
-    if [ "$case" = moving ]; then good=0.90; fi
+    # Contact with the pole (still face): every true contact frame reported but for onset/offset
+    # timing, none more than a frame away from one, the contact point 1.71 px (median) along the
+    # whisker from the truth's. With the head moving, the pressed whisker's fit drifts and 29 of 65
+    # contact frames are missed: reported, not required.
+    good=0.95 base=2.0 contact=(--max-contact-arc-px 3)
+    if [ "$case" = moving ]; then good=0.90 contact=(); fi
     "$py" "$src/scripts/whisker_truth_check.py" --results "$work/results.jsonl" \
-      --truth "$work/pad/truth.jsonl" --require-found --require-good "$good" --max-base-px "$base"
+      --truth "$work/pad/truth.jsonl" --require-found --require-good "$good" --max-base-px "$base" \
+      "${contact[@]}"
     ;;
   real)
     video="$src/../shared/data/whiskers/test_video_10s.mp4"

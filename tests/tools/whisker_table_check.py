@@ -25,7 +25,8 @@ def main():
     a = ap.parse_args()
     d = pd.read_csv(a.csv)
     want = ["frame", "id", "status", "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px",
-            "length_px", "base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m"]
+            "length_px", "base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m",
+            "contact", "contact_arc_length_px"]
     failures = []
     if list(d.columns) != want:
         failures.append(f"columns {list(d.columns)}, expected {want}")
@@ -43,6 +44,13 @@ def main():
     values = ["base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m"]
     if ok[values].isna().any().any():
         failures.append("an ok row lacks a read-out value")
+    # Detection runs on every frame (the default), so every ok row says whether it touches, and
+    # a contact point only when it does.
+    if not ok.contact.isin([0, 1]).all():
+        failures.append("an ok row's contact is not 0 or 1")
+    if ok[ok.contact == 1].contact_arc_length_px.isna().any() or \
+            ok[ok.contact == 0].contact_arc_length_px.notna().any():
+        failures.append("contact_arc_length_px is not set exactly on the touching rows")
     if not others[values].isna().all().all():
         failures.append("a lost or not-converged row has read-out values")
     # The JSON record of each ok whisker-frame carries the same numbers.

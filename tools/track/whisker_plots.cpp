@@ -53,7 +53,7 @@ bool write_whisker_plots(const std::string& dir, const std::vector<WhiskerSeries
     return false;
   }
   for (const WhiskerSeries& s : series) {
-    cv::Mat image(700, 900, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::Mat image(820, 900, CV_8UC3, cv::Scalar(255, 255, 255));
     const std::string id = "whisker " + std::to_string(s.id) + ": ";
     draw_series(image, cv::Rect(90, 40, 780, 170), s.frame, s.base_angle_deg,
                 id + "base angle, degrees");
@@ -61,7 +61,9 @@ bool write_whisker_plots(const std::string& dir, const std::vector<WhiskerSeries
                 id + "curvature change from rest, " + curvature_unit);
     draw_series(image, cv::Rect(90, 480, 780, 170), s.frame, s.moment,
                 id + "moment at the follicle, " + moment_unit);
-    text(image, "frame (gaps: lost)", {400, 685}, 0.45);
+    draw_series(image, cv::Rect(90, 700, 780, 60), s.frame, s.contact,
+                id + "contact with an object (1: touching)");
+    text(image, "frame (gaps: lost)", {400, 805}, 0.45);
     if (!save_png(dir + "/whisker_" + std::to_string(s.id) + ".png", image, error)) return false;
   }
   return true;

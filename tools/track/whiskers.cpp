@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "rt/whisker/contact.hpp"
 #include "rt/whisker/detection.hpp"
 #include "rt/whisker/whisker_tracker.hpp"
 #include "tools/io/json_file.hpp"
@@ -46,7 +47,9 @@ cv::Scalar id_colour(int id) {
   return cv::Scalar(c[0], c[1], c[2]);
 }
 
-void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker, int frame) {
+// Ids in their colours, lost whiskers red, the follicle as a dot, a contact as a ring.
+void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker,
+                   const std::vector<rt::WhiskerContact>& contacts, int frame) {
   for (int w = 0; w < tracker.num_whiskers(); ++w) {
     const rt::Tracker& t = tracker.whisker(w);
     const rt::WhiskerFrame& r = tracker.result(w);
@@ -65,6 +68,10 @@ void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker, int frame) {
     cv::circle(img, f, 3, colour, -1, cv::LINE_AA);
     cv::putText(img, std::to_string(w), cv::Point2d(r.tip.x() + 3, r.tip.y() + 3),
                 cv::FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv::LINE_AA);
+    if (w < static_cast<int>(contacts.size()) && contacts[w].touching) {
+      const cv::Point2d c(contacts[w].point.x(), contacts[w].point.y());
+      cv::circle(img, c, 6, cv::Scalar(0, 255, 255), 2, cv::LINE_AA);
+    }
   }
   cv::putText(img, "frame " + std::to_string(frame), cv::Point(8, img.rows - 10),
               cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 0), 1, cv::LINE_AA);
@@ -94,7 +101,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   const std::string moment_key = si ? "m0_N_m" : "m0_model";
   const std::vector<std::string> value_columns = {
       "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px", "length_px", "base_angle_deg",
-      curvature_key,   delta_key,       moment_key};
+      curvature_key,   delta_key,       moment_key,   "contact",       "contact_arc_length_px"};
   std::ofstream csv;
   if (!args.csv.empty()) {
     csv.open(args.csv + ".tmp");
@@ -110,6 +117,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   std::vector<rt::WhiskerReadoutModel> readouts;
   std::vector<WhiskerSeries> series;
   std::vector<std::vector<double>> centrelines;
+  std::vector<float> object_distance;
+  std::vector<rt::WhiskerContact> contacts;
   std::vector<double> latencies, redetect_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
@@ -202,6 +211,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     // Detection again, outside the real-time path: the whiskers are matched to it in their order
     // along the face, and lost or misplaced ones restart on theirs.
     double redetect_ms = 0.0;
+    bool have_objects = false;  // this frame's distance to objects is known (detection ran)
     rt::WhiskerAssociation association;
     const bool redetect = args.redetect == "every" || (args.redetect == "lost" && tracker->any_lost());
     if (redetect) {
@@ -210,6 +220,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
       std::vector<std::vector<Eigen::Vector2d>> traces;
       for (const auto& w : again.whiskers) traces.push_back(w.points);
       if (again.error.empty()) association = tracker->associate(view, traces);
+      object_distance = again.object_distance;
+      have_objects = again.error.empty();
       redetect_ms =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
       redetect_times.push_back(redetect_ms);
@@ -225,6 +237,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                           {"shift", point(association.shift)}};
     }
     nlohmann::json whiskers = nlohmann::json::array();
+    contacts.assign(static_cast<std::size_t>(tracker->num_whiskers()), rt::WhiskerContact{});
     for (int w = 0; w < tracker->num_whiskers(); ++w) {
       const rt::Tracker& t = tracker->whisker(w);
       const rt::WhiskerFrame& r = tracker->result(w);
@@ -252,6 +265,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
       ts.base_angle_deg.push_back(nan);
       ts.delta_curvature.push_back(nan);
       ts.moment.push_back(nan);
+      ts.contact.push_back(nan);
       // Nor of a whisker placed on its detection without a fit (not converged): its node
       // rotations are the detection's chords', not an equilibrium's.
       std::vector<double> values(value_columns.size(), nan);
@@ -265,7 +279,24 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         record[delta_key] = q.delta_curvature;
         record[moment_key] = q.moment;
         values = {r.follicle.x(), r.follicle.y(), r.tip.x(),   r.tip.y(),        r.length_px,
-                  q.base_angle_deg, q.curvature, q.delta_curvature, q.moment};
+                  q.base_angle_deg, q.curvature, q.delta_curvature, q.moment, nan, nan};
+        // Contact with a pole or another object the detection of this frame saw.
+        if (have_objects) {
+          const rt::WhiskerContact c =
+              object_distance.empty()
+                  ? rt::WhiskerContact{}
+                  : rt::find_contact(t, object_distance.data(), grey.cols, grey.rows);
+          contacts[w] = c;
+          record["contact"] = c.touching;
+          if (std::isfinite(c.distance_px)) record["object_distance_px"] = c.distance_px;
+          values[9] = c.touching ? 1.0 : 0.0;
+          ts.contact.back() = values[9];
+          if (c.touching) {
+            record["contact_arc_length_px"] = c.arc_length_px;
+            record["contact_point"] = point(c.point);
+            values[10] = c.arc_length_px;
+          }
+        }
       }
       if (csv.is_open()) {
         csv << index << "," << w << "," << status;
@@ -295,7 +326,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
 
     if (overlay.enabled()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
-      draw_whiskers(colour, *tracker, index);
+      draw_whiskers(colour, *tracker, contacts, index);
       overlay.write(colour, index);
     }
     ++processed;

@@ -1,0 +1,52 @@
+#include "rt/whisker/contact.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace sinew::rt {
+
+namespace {
+
+// Bilinear lookup; far (255) outside the map.
+double lookup(const float* d, int width, int height, const Eigen::Vector2d& p) {
+  if (!(p.x() >= 0.0 && p.y() >= 0.0 && p.x() <= width - 1.0 && p.y() <= height - 1.0))
+    return 255.0;
+  const int x0 = std::min(static_cast<int>(p.x()), width - 2);
+  const int y0 = std::min(static_cast<int>(p.y()), height - 2);
+  const double fx = p.x() - x0, fy = p.y() - y0;
+  const float* r0 = d + static_cast<std::ptrdiff_t>(y0) * width + x0;
+  const float* r1 = r0 + width;
+  return (1.0 - fy) * ((1.0 - fx) * r0[0] + fx * r0[1]) + fy * ((1.0 - fx) * r1[0] + fx * r1[1]);
+}
+
+}  // namespace
+
+WhiskerContact find_contact(const Tracker& whisker, const float* distance, int width, int height,
+                            double touch_px, double skip_px) noexcept {
+  WhiskerContact c;
+  c.distance_px = std::numeric_limits<double>::infinity();
+  if (distance == nullptr || width < 2 || height < 2) return c;
+  const common::BeamModel& model = whisker.model();
+  double s0 = 0.0;
+  for (int e = 0; e < model.num_elements(); ++e) {
+    const double length = model.element(e).length;
+    const int steps = std::max(1, static_cast<int>(std::ceil(length)));
+    for (int k = 0; k <= steps; ++k) {
+      const double s = s0 + length * k / steps;
+      if (s < skip_px) continue;
+      const Eigen::Vector2d p = whisker.centreline(e, static_cast<double>(k) / steps).position;
+      const double d = lookup(distance, width, height, p);
+      c.distance_px = std::min(c.distance_px, d);
+      if (!c.touching && d <= touch_px) {
+        c.touching = true;
+        c.arc_length_px = s;
+        c.point = p;
+      }
+    }
+    s0 += length;
+  }
+  return c;
+}
+
+}  // namespace sinew::rt

@@ -1,0 +1,27 @@
+#pragma once
+/// Contact between a tracked whisker and an object in the image (a pole, a lick port): the first
+/// point along the whisker, from its follicle, that lies within `touch_px` of the object, from a
+/// distance-to-objects map (WhiskerDetection::object_distance). The arc length there is the
+/// contact point a lab reports (and where the contact load acts). No allocation.
+
+#include <Eigen/Core>
+
+#include "rt/tracker.hpp"
+
+namespace sinew::rt {
+
+struct WhiskerContact {
+  bool touching = false;
+  double arc_length_px = 0.0;  ///< from the follicle along the centreline, when touching
+  Eigen::Vector2d point = Eigen::Vector2d::Zero();
+  double distance_px = 0.0;  ///< the centreline's least distance to an object
+};
+
+/// distance: row-major width × height map (pixels to the nearest object; empty: no object).
+/// touch_px: the centreline counts as touching within this distance (the whisker's half-width
+/// and the object mask's blur), > 0. skip_px: the first this many pixels from the follicle are
+/// not looked at (the face's own shadow), ≥ 0.
+WhiskerContact find_contact(const Tracker& whisker, const float* distance, int width, int height,
+                            double touch_px = 3.5, double skip_px = 10.0) noexcept;
+
+}  // namespace sinew::rt
