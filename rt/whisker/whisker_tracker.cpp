@@ -160,6 +160,7 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
   moved_px_.assign(trackers_.size(), 0.0);
   previous_.resize(trackers_.size());
   for (std::size_t w = 0; w < trackers_.size(); ++w) previous_[w] = trackers_[w].state();
+  boxes_.resize(trackers_.size());
   anchor_follicle_.resize(trackers_.size());
   anchor_direction_.resize(trackers_.size());
   for (std::size_t w = 0; w < trackers_.size(); ++w) {
@@ -480,13 +481,23 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
       r.status = FrameStatus::kLost;
     }
   }
+  for (int w = 0; w < n; ++w) {
+    const Tracker& t = trackers_[w];
+    boxes_[w].setEmpty();
+    for (int i = 0; i < t.num_nodes(); ++i) boxes_[w].extend(t.node_position(i));
+    const Eigen::Vector2d pad = Eigen::Vector2d::Constant(0.5 * options_.claim_px);
+    boxes_[w] = Eigen::AlignedBox2d(boxes_[w].min() - pad, boxes_[w].max() + pad);
+  }
   // One ridge, one whisker: of two fits that run along each other, the one that moved more has
   // jumped onto its neighbour.
   for (int a = 0; a < n; ++a) {
     if (results_[a].status == FrameStatus::kLost) continue;
     for (int b = 0; b < n; ++b) {
       if (b == a || results_[b].status == FrameStatus::kLost) continue;
-      if (fraction_near(a, b) <= options_.claim_fraction) continue;
+      // Fits whose bounding boxes lie apart by more than claim_px share no node.
+      if (!boxes_[a].intersects(boxes_[b]) || fraction_near(a, b) <= options_.claim_fraction) {
+        continue;
+      }
       const int loser = moved_px_[a] > moved_px_[b] ? a : b;
       trackers_[loser].reject_last_frame();
       results_[loser].status = FrameStatus::kLost;

@@ -15,6 +15,7 @@
 /// frame, so identities do not swap where whiskers cross or run side by side.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <optional>
 #include <string>
 #include <vector>
@@ -132,6 +133,7 @@ class WhiskerTracker {
   std::vector<WhiskerFrame> results_;
   std::vector<double> moved_px_;  // max node displacement this frame, per whisker
   std::vector<Eigen::VectorXd> previous_;
+  std::vector<Eigen::AlignedBox2d> boxes_;  // each fit's node bounding box, claim_px/2 wider
   // Where a detection last confirmed each whisker: follicle and first direction.
   std::vector<Eigen::Vector2d> anchor_follicle_, anchor_direction_;
 };
