@@ -136,9 +136,8 @@ Eigen::Vector2d tangent_at(const Eigen::Matrix2Xd& rest, const Eigen::Matrix2Xd&
   const double xi = std::clamp((s - arc[e]) / length, 0.0, 1.0);
   const common::BeamElementReference ref =
       common::make_beam_element_reference(rest.col(e), rest.col(e + 1));
-  const CentrelinePoint p =
-      hermite_centreline(rest.col(e), ref, tangents.col(e), tangents.col(e + 1),
-                         u.segment<6>(3 * e), xi);
+  const CentrelinePoint p = hermite_centreline(rest.col(e), ref, tangents.col(e),
+                                               tangents.col(e + 1), u.segment<6>(3 * e), xi);
   // The normal is the tangent turned by +90°.
   return Eigen::Vector2d(p.normal.y(), -p.normal.x());
 }

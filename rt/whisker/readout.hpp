@@ -115,12 +115,12 @@ class WhiskerReadoutModel {
  private:
   WhiskerReadoutOptions options_;
   std::string error_;
-  Eigen::Matrix2Xd rest_;      // reference nodes, pixels
-  Eigen::Matrix2Xd tangents_;  // unit reference tangents at the nodes
-  Eigen::VectorXd arc_;        // reference arc length at each node, pixels
+  Eigen::Matrix2Xd rest_;                   // reference nodes, pixels
+  Eigen::Matrix2Xd tangents_;               // unit reference tangents at the nodes
+  Eigen::VectorXd arc_;                     // reference arc length at each node, pixels
   common::BeamElementReference reference_;  // first element, in the reported length unit
   common::BeamSection section_;             // first element, reported units
-  double length_unit_ = 1.0;  // reported length unit per pixel (m per px with SI, else 1)
+  double length_unit_ = 1.0;     // reported length unit per pixel (m per px with SI, else 1)
   double curvature_unit_ = 1.0;  // 1/px → reported curvature unit
   double from_px_ = 0.0, to_px_ = 0.0;
   double rest_curvature_ = 0.0;

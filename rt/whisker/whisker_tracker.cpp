@@ -2,10 +2,10 @@
 
 #include "rt/detail/field_error.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <Eigen/Eigenvalues>
 #include <limits>
 
 namespace sinew::rt {

@@ -75,9 +75,9 @@ struct WhiskerFrame {
 
 /// What associate() did on one frame.
 struct WhiskerAssociation {
-  int detected = 0;   ///< detections offered
-  int matched = 0;    ///< whiskers matched to one
-  int restarted = 0;  ///< of those, restarted on it and fitted again
+  int detected = 0;                                 ///< detections offered
+  int matched = 0;                                  ///< whiskers matched to one
+  int restarted = 0;                                ///< of those, restarted on it and fitted again
   Eigen::Vector2d shift = Eigen::Vector2d::Zero();  ///< the pad's shift the matching used
 };
 

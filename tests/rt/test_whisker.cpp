@@ -267,8 +267,8 @@ TEST(WhiskerTracker, AssociationKeepsIdentitiesWhenTheHeadMovesFurtherThanTheSea
       kept_off += own >= 1.0;
     }
   }
-  std::cout << "restarted onto their own curve: " << restarted_on_own << "; kept off it: "
-            << kept_off << "\n";
+  std::cout << "restarted onto their own curve: " << restarted_on_own
+            << "; kept off it: " << kept_off << "\n";
   EXPECT_EQ(a.restarted, restarted_on_own);
   EXPECT_GE(a.restarted, 2);
   std::vector<int> restarted;

@@ -27,8 +27,9 @@ Eigen::Matrix2Xd arc_nodes(const Eigen::Vector2d& base, double angle, double kap
       x.col(i) = base + s * Eigen::Vector2d(std::cos(angle), std::sin(angle));
     } else {
       const double a = angle + kappa * s;
-      x.col(i) = base + Eigen::Vector2d(std::sin(a) - std::sin(angle),
-                                        std::cos(angle) - std::cos(a)) / kappa;
+      x.col(i) =
+          base +
+          Eigen::Vector2d(std::sin(a) - std::sin(angle), std::cos(angle) - std::cos(a)) / kappa;
     }
   }
   return x;
@@ -146,7 +147,8 @@ TEST(WhiskerReadout, TheSameWhiskerAtTwoImageScalesGivesTheSameSIFigures) {
   ob.curvature_to_px = 2.0 * oa.curvature_to_px;
   const WhiskerReadoutModel ra(pixel_model(rest_a), oa), rb(pixel_model(rest_b), ob);
   ASSERT_TRUE(ra.valid() && rb.valid());
-  const WhiskerReadout a = ra.evaluate(state(rest_a, bent_a)), b = rb.evaluate(state(rest_b, bent_b));
+  const WhiskerReadout a = ra.evaluate(state(rest_a, bent_a)),
+                       b = rb.evaluate(state(rest_b, bent_b));
   std::cout << "M0 " << a.moment << " / " << b.moment << " N m, curvature " << a.curvature << " / "
             << b.curvature << " 1/mm\n";
   EXPECT_NEAR(a.moment, b.moment, 1e-9 * std::abs(a.moment));
@@ -176,8 +178,8 @@ TEST(WhiskerReadout, CurvatureDeltaCurvatureAndBaseAngleOfExactArcs) {
   ASSERT_TRUE(model.valid()) << model.error();
   const WhiskerReadout r = model.evaluate(u);
   std::cout << "curvature " << r.curvature << " (true " << k_now << "), rest "
-            << model.rest_curvature() << " (true " << k_rest << "), base angle "
-            << r.base_angle_deg << " deg\n";
+            << model.rest_curvature() << " (true " << k_rest << "), base angle " << r.base_angle_deg
+            << " deg\n";
   EXPECT_NEAR(r.curvature, k_now, 0.01 * k_now);
   EXPECT_NEAR(model.rest_curvature(), k_rest, 0.01 * k_rest);
   EXPECT_NEAR(r.delta_curvature, k_now - k_rest, 0.01 * (k_now - k_rest));
@@ -198,8 +200,8 @@ TEST(WhiskerContact, FirstPointWithinReachOfAPoleAlongTheWhisker) {
     std::vector<float> d(static_cast<std::size_t>(width) * height);
     for (int y = 0; y < height; ++y) {
       for (int x = 0; x < width; ++x) {
-        d[static_cast<std::size_t>(y) * width + x] = static_cast<float>(
-            std::max(0.0, (Eigen::Vector2d(x, y) - centre).norm() - radius));
+        d[static_cast<std::size_t>(y) * width + x] =
+            static_cast<float>(std::max(0.0, (Eigen::Vector2d(x, y) - centre).norm() - radius));
       }
     }
     return d;

@@ -9,8 +9,10 @@
 ///   /centrelines/whisker_<id>  [frames, nodes, 3]: x, y (pixels) and θ of every node
 /// Attributes on the root: the read-out's units and options. In Python:
 ///   import h5py, pandas as pd
-///   f = h5py.File("w.h5"); d = pd.DataFrame(f["summary"][:]); d["status"] = d.status.str.decode("ascii")
-///   c = f["centrelines/whisker_0"][:]   # (frames, nodes, 3)
+///   f = h5py.File("w.h5")
+///   d = pd.DataFrame(f["summary"][:])
+///   d["status"] = d.status.str.decode("ascii")
+///   c = f["centrelines/whisker_0"][:]  # (frames, nodes, 3)
 
 #include <memory>
 #include <string>

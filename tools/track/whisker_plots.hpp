@@ -11,7 +11,7 @@ struct WhiskerSeries {
   int id = 0;
   std::vector<int> frame;
   std::vector<double> base_angle_deg, delta_curvature, moment;  ///< NaN where lost
-  std::vector<double> contact;  ///< 1 touching, 0 not, NaN unknown
+  std::vector<double> contact;                                  ///< 1 touching, 0 not, NaN unknown
 };
 
 /// Writes DIR/whisker_<id>.png for every series (DIR is created). curvature_unit and moment_unit

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -9,7 +10,6 @@
 #include <limits>
 #include <map>
 #include <memory>
-#include <cmath>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -100,8 +100,9 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   const std::string delta_key = si ? "delta_curvature_per_mm" : "delta_curvature_per_px";
   const std::string moment_key = si ? "m0_N_m" : "m0_model";
   const std::vector<std::string> value_columns = {
-      "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px", "length_px", "base_angle_deg",
-      curvature_key,   delta_key,       moment_key,   "contact",       "contact_arc_length_px"};
+      "follicle_x_px",        "follicle_y_px", "tip_x_px", "tip_y_px", "length_px",
+      "base_angle_deg",       curvature_key,   delta_key,  moment_key, "contact",
+      "contact_arc_length_px"};
   std::ofstream csv;
   if (!args.csv.empty()) {
     csv.open(args.csv + ".tmp");
@@ -160,7 +161,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                                 {"length_mm", args.readout.physics.length_mm},
                                 {"axis_angle_deg", args.readout.axis_angle_deg},
                                 {"curvature_window_px",
-                                 {args.readout.curvature_from_px, args.readout.curvature_to_px}}}}}}}
+                                 {args.readout.curvature_from_px,
+                                  args.readout.curvature_to_px}}}}}}}
                  .dump()
           << "\n";
       if (!args.quiet) {
@@ -189,16 +191,16 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         hdf5 = std::make_unique<WhiskerHdf5Writer>(args.hdf5, value_columns, nodes);
         centrelines.resize(nodes.size());
         hdf5->attribute("source", args.input);
-        hdf5->attribute("units", si ? "lengths px (follicle, tip, nodes), curvature 1/mm, moment N m"
-                                    : "lengths px, curvature 1/px, moment pixel model units");
-        hdf5->attribute("readout", nlohmann::json{{"mm_per_px", args.readout.physics.mm_per_px},
-                                                  {"young_modulus_gpa",
-                                                   args.readout.physics.young_modulus_gpa},
-                                                  {"base_radius_um",
-                                                   args.readout.physics.base_radius_um},
-                                                  {"tip_radius_um", args.readout.physics.tip_radius_um},
-                                                  {"axis_angle_deg", args.readout.axis_angle_deg}}
-                                       .dump());
+        hdf5->attribute("units",
+                        si ? "lengths px (follicle, tip, nodes), curvature 1/mm, moment N m"
+                           : "lengths px, curvature 1/px, moment pixel model units");
+        hdf5->attribute(
+            "readout", nlohmann::json{{"mm_per_px", args.readout.physics.mm_per_px},
+                                      {"young_modulus_gpa", args.readout.physics.young_modulus_gpa},
+                                      {"base_radius_um", args.readout.physics.base_radius_um},
+                                      {"tip_radius_um", args.readout.physics.tip_radius_um},
+                                      {"axis_angle_deg", args.readout.axis_angle_deg}}
+                           .dump());
       }
     }
     const double seconds = tracker->track(view);
@@ -213,7 +215,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     double redetect_ms = 0.0;
     bool have_objects = false;  // this frame's distance to objects is known (detection ran)
     rt::WhiskerAssociation association;
-    const bool redetect = args.redetect == "every" || (args.redetect == "lost" && tracker->any_lost());
+    const bool redetect =
+        args.redetect == "every" || (args.redetect == "lost" && tracker->any_lost());
     if (redetect) {
       const auto t0 = std::chrono::steady_clock::now();
       const rt::WhiskerDetection again = rt::detect_whiskers(view, detect_options);
@@ -278,8 +281,9 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         record[curvature_key] = q.curvature;
         record[delta_key] = q.delta_curvature;
         record[moment_key] = q.moment;
-        values = {r.follicle.x(), r.follicle.y(), r.tip.x(),   r.tip.y(),        r.length_px,
-                  q.base_angle_deg, q.curvature, q.delta_curvature, q.moment, nan, nan};
+        values = {
+            r.follicle.x(), r.follicle.y(),    r.tip.x(), r.tip.y(), r.length_px, q.base_angle_deg,
+            q.curvature,    q.delta_curvature, q.moment,  nan,       nan};
         // Contact with a pole or another object the detection of this frame saw.
         if (have_objects) {
           const rt::WhiskerContact c =
@@ -366,8 +370,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
               << " ms\n";
     if (!redetect_times.empty()) {
       std::cout << "  detection again (--redetect " << args.redetect
-                << ", outside the real-time path): " << redetect_times.size()
-                << " frames, median " << percentile(redetect_times, 0.5) << " ms\n";
+                << ", outside the real-time path): " << redetect_times.size() << " frames, median "
+                << percentile(redetect_times, 0.5) << " ms\n";
     }
     std::cout << "  results: " << args.out << "\n";
     if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";

@@ -2,8 +2,8 @@
 /// sinew-track --whiskers: finds every whisker on the first frame (rt::detect_whiskers) and tracks
 /// them all (rt::WhiskerTracker). One JSON line per frame:
 /// {"frame", "latency_us", "whiskers": [{"id", "status", "nodes": [[x, y, θ]...], "follicle",
-/// "tip", "length_px", "inlier_fraction", ...}], "detect_ms"}; the first line before the frames is the detection
-/// record {"detection": {...}}.
+/// "tip", "length_px", "inlier_fraction", read-out and contact ...}], "redetect": {...}}; the
+/// first line before the frames is the detection record {"detection": {...}}.
 
 #include <string>
 
