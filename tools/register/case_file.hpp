@@ -97,10 +97,15 @@ struct RegistrationWeights {
   /// femur pair 0.391 → 0.335 mm mean symmetric distance; gluteus medius 2.04 / 0.73 → 0.73 /
   /// 0.58 mm, worst 13.6 → 5.6 mm).
   int icp_point_to_plane_iterations = 10;
+  /// Landmarks stay in the ICP stage's objective (offline::GaussNewtonOptions::
+  /// icp_stage_landmarks); default true: the user's correspondences are met in the result too.
+  bool icp_stage_landmarks = true;
 };
 
 struct RegistrationStop {
-  int max_iterations_per_stage = 20;  ///< ≥ 0
+  /// ≥ 0. 40: the ICP stage's ramp and point-to-plane phase take the first 10, and the damped
+  /// steps (Solver::damped_step_trials) of the vertebrae need 15-30 more to meet the markers.
+  int max_iterations_per_stage = 40;
   /// ICP stop tolerance in the case's units; std::nullopt: 0.1% of the template's diagonal.
   std::optional<double> max_marker_error;
   double min_step = 0.01;  ///< in [0, 1)
@@ -111,6 +116,14 @@ struct RegistrationCase {
   std::string template_path;  ///< resolved against the case file's folder
   bool template_is_tet_mesh = false;
   LengthUnit units = LengthUnit::kUnspecified;
+  struct Solver {
+    /// offline::GaussNewtonOptions::damped_step_trials ("solver": {"damped_step_trials": N}).
+    /// Default 4 (μ up to 1e3 of the smoothness term): without it the ICP stage on real
+    /// vertebrae (issue 18) clamped 10–18% of the tets per step and stalled.
+    int damped_step_trials = 4;
+    /// offline::GaussNewtonOptions::predictor_warm_start; default true.
+    bool predictor_warm_start = true;
+  } solver;
   offline::TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
   bool mesh_options_given = false;
   PointPairSet attachments;
