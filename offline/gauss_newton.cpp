@@ -150,8 +150,10 @@ class Registration {
         stage == RegistrationStage::kIcpMarkers ||
         (stage == RegistrationStage::kInitialFit && (constraints_.landmarks.empty() || free_));
     if (landmarks) {
+      // In the ICP stage they follow its weight ramp too (icp_stage_landmarks).
+      const double scale = stage == RegistrationStage::kIcpMarkers ? icp_weight_scale_ : 1.0;
       for (PointConstraint c : constraints_.landmarks) {
-        c.weight *= options_.alpha;
+        c.weight *= options_.alpha * scale;
         list.push_back(c);
       }
     }
@@ -767,7 +769,9 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
   r.x = result.x;
   std::vector<RegistrationStage> stages;
   if (!free) stages.push_back(RegistrationStage::kAttachments);
-  if (!constraints.landmarks.empty()) stages.push_back(RegistrationStage::kLandmarks);
+  if (!constraints.landmarks.empty() &&
+      (options.landmark_stage || constraints.icp_markers.empty() || !options.icp_stage_landmarks))
+    stages.push_back(RegistrationStage::kLandmarks);
   if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
   const RegistrationStage final_stage = stages.back();
   // The stage to start with (stages.size(): all done) and its first iteration.
