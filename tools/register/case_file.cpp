@@ -291,7 +291,8 @@ RegistrationCase read_registration_case(const std::string& path) {
   if (root.has("weights")) {
     const JsonCursor w = root.at("weights");
     w.expect_keys({"alpha", "beta", "attachment_stiffness", "icp_weight_ramp",
-                   "icp_point_to_plane_iterations", "icp_stage_landmarks"});
+                   "icp_point_to_plane_iterations", "icp_stage_landmarks",
+                   "landmark_stage"});
     if (w.has("alpha")) c.weights.alpha = w.at("alpha").positive_number();
     if (w.has("beta")) {
       const double beta = w.at("beta").finite_number();
@@ -316,6 +317,7 @@ RegistrationCase read_registration_case(const std::string& path) {
     }
     if (w.has("icp_stage_landmarks"))
       c.weights.icp_stage_landmarks = w.at("icp_stage_landmarks").boolean();
+    if (w.has("landmark_stage")) c.weights.landmark_stage = w.at("landmark_stage").boolean();
   }
   if (root.has("solver")) {
     const JsonCursor v = root.at("solver");

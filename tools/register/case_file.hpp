@@ -100,6 +100,9 @@ struct RegistrationWeights {
   /// Landmarks stay in the ICP stage's objective (offline::GaussNewtonOptions::
   /// icp_stage_landmarks); default true: the user's correspondences are met in the result too.
   bool icp_stage_landmarks = true;
+  /// offline::GaussNewtonOptions::landmark_stage: with landmarks in the ICP stage and ICP
+  /// markers, the separate landmark stage runs only when this is true; default false.
+  bool landmark_stage = false;
 };
 
 struct RegistrationStop {

@@ -502,6 +502,7 @@ int run(const RunRequest& request) {
   options.icp_weight_ramp = c.weights.icp_weight_ramp;
   options.icp_point_to_plane_iterations = c.weights.icp_point_to_plane_iterations;
   options.icp_stage_landmarks = c.weights.icp_stage_landmarks;
+  options.landmark_stage = c.weights.landmark_stage;
   options.damped_step_trials = c.solver.damped_step_trials;
   options.predictor_warm_start = c.solver.predictor_warm_start;
   if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
@@ -530,6 +531,7 @@ int run(const RunRequest& request) {
                                {"max_marker_error", tools::hex_double(options.max_marker_error)},
                                {"min_step", tools::hex_double(options.min_step)},
                                {"icp_stage_landmarks", options.icp_stage_landmarks},
+                               {"landmark_stage", options.landmark_stage},
                                {"damped_step_trials", options.damped_step_trials},
                                {"predictor_warm_start", options.predictor_warm_start}};
   for (const double f : options.icp_weight_ramp) {
@@ -601,7 +603,9 @@ int run(const RunRequest& request) {
   // bound: stages usually stop early).
   std::vector<offline::RegistrationStage> stages;
   if (!free_object) stages.push_back(offline::RegistrationStage::kAttachments);
-  if (!constraints.landmarks.empty()) stages.push_back(offline::RegistrationStage::kLandmarks);
+  if (!constraints.landmarks.empty() &&
+      (options.landmark_stage || constraints.icp_markers.empty() || !options.icp_stage_landmarks))
+    stages.push_back(offline::RegistrationStage::kLandmarks);
   if (!constraints.icp_markers.empty()) stages.push_back(offline::RegistrationStage::kIcpMarkers);
   double iteration_seconds = 0.0;
   int iterations_timed = 0;
