@@ -271,6 +271,23 @@ class Registration {
     return true;
   }
 
+  // Whether no tet of x is inverted relative to its rest orientation: the equilibrium solver
+  // keeps tets from inverting only when they are not inverted at its start.
+  bool inverts_no_tet(const Eigen::VectorXd& at) const {
+    const auto& t = energy_.tets();
+    const Eigen::VectorXd& rest = energy_.rest_dofs();
+    for (Eigen::Index e = 0; e < t.rows(); ++e) {
+      const auto volume = [&](const Eigen::VectorXd& q) {
+        const Eigen::Vector3d a = q.segment<3>(3 * t(e, 0));
+        return (q.segment<3>(3 * t(e, 1)) - a)
+            .cross(q.segment<3>(3 * t(e, 2)) - a)
+            .dot(q.segment<3>(3 * t(e, 3)) - a);
+      };
+      if (volume(at) * volume(rest) <= 0.0) return false;
+    }
+    return true;
+  }
+
   // dx of the last direction() (empty when none): x + η·dx predicts the equilibrium at s + η·Δs.
   const Eigen::VectorXd& predicted_dx() const { return predicted_dx_; }
 
@@ -998,7 +1015,10 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         bool solved = false;
         if (!projected && trial_dx.size() == x_trial.size()) {
           x_trial.noalias() += eta * trial_dx;
-          solved = r.solve_equilibrium(s_trial, x_trial);
+          // The prediction may invert tets, which the solver then need not undo (it only keeps
+          // tets that start uninverted so): an equilibrium with an inverted tet is solved again
+          // from x. Starting from x alone instead stalled sub-verse023 (34 s per iteration).
+          solved = r.solve_equilibrium(s_trial, x_trial) && r.inverts_no_tet(x_trial);
           if (!solved) x_trial = r.x;
         }
         // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0.
