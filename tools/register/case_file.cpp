@@ -321,7 +321,12 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
   if (root.has("solver")) {
     const JsonCursor v = root.at("solver");
-    v.expect_keys({"damped_step_trials", "predictor_warm_start"});
+    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor"});
+    if (v.has("eigenvalue_floor")) {
+      const double f = v.at("eigenvalue_floor").finite_number();
+      if (!(f > 0 && f < 1)) v.at("eigenvalue_floor").fail("= " + number(f) + " must be in (0, 1)");
+      c.solver.eigenvalue_floor = f;
+    }
     if (v.has("predictor_warm_start"))
       c.solver.predictor_warm_start = v.at("predictor_warm_start").boolean();
     if (v.has("damped_step_trials"))

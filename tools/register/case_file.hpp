@@ -126,6 +126,8 @@ struct RegistrationCase {
     int damped_step_trials = 4;
     /// offline::GaussNewtonOptions::predictor_warm_start; default true.
     bool predictor_warm_start = true;
+    /// offline::GaussNewtonOptions::eigenvalue_floor (the paper's 0.01).
+    double eigenvalue_floor = 0.01;
   } solver;
   offline::TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
   bool mesh_options_given = false;

@@ -505,6 +505,7 @@ int run(const RunRequest& request) {
   options.landmark_stage = c.weights.landmark_stage;
   options.damped_step_trials = c.solver.damped_step_trials;
   options.predictor_warm_start = c.solver.predictor_warm_start;
+  options.eigenvalue_floor = c.solver.eigenvalue_floor;
   if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
 
   // What a checkpoint must match to be resumed here: mode, mesh, markers, output surface, options.
@@ -533,7 +534,8 @@ int run(const RunRequest& request) {
                                {"icp_stage_landmarks", options.icp_stage_landmarks},
                                {"landmark_stage", options.landmark_stage},
                                {"damped_step_trials", options.damped_step_trials},
-                               {"predictor_warm_start", options.predictor_warm_start}};
+                               {"predictor_warm_start", options.predictor_warm_start},
+                               {"eigenvalue_floor", tools::hex_double(options.eigenvalue_floor)}};
   for (const double f : options.icp_weight_ramp) {
     identification["options"]["icp_weight_ramp"].push_back(tools::hex_double(f));
   }
