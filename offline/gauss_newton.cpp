@@ -1061,8 +1061,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         // With damped trials the test is on Φ at the clamped state itself (a few tets at the
         // floor need not spoil a step that achieves the model's decrease); without, as before.
         full_step_good = (record.clamped_tets == 0 || options.damped_step_trials > 0) &&
-                         options.full_step_acceptance > 0.0 &&
-                         record.predicted_decrease > 0.0 &&
+                         options.full_step_acceptance > 0.0 && record.predicted_decrease > 0.0 &&
                          before - full >= options.full_step_acceptance * record.predicted_decrease;
         // The best state of all trials is taken (phi keeps it), usually this full step.
         if (full_step_good) break;

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <ostream>
 #include <string>
 
 #include "tests/support/run_tool.hpp"
@@ -38,6 +39,11 @@ struct VertebraCase {
   // (markers 0.025 mm mean, 0.141 mm max, against the 0.106 mm tolerance on the max): not yet.
   bool converges;
 };
+
+// The case's name in gtest's listings (instead of the struct's bytes).
+void PrintTo(const VertebraCase& c, std::ostream* os) {
+  *os << c.name;
+}
 
 class RegisterVertebra : public ::testing::TestWithParam<VertebraCase> {};
 

@@ -291,8 +291,7 @@ RegistrationCase read_registration_case(const std::string& path) {
   if (root.has("weights")) {
     const JsonCursor w = root.at("weights");
     w.expect_keys({"alpha", "beta", "attachment_stiffness", "icp_weight_ramp",
-                   "icp_point_to_plane_iterations", "icp_stage_landmarks",
-                   "landmark_stage"});
+                   "icp_point_to_plane_iterations", "icp_stage_landmarks", "landmark_stage"});
     if (w.has("alpha")) c.weights.alpha = w.at("alpha").positive_number();
     if (w.has("beta")) {
       const double beta = w.at("beta").finite_number();

@@ -129,7 +129,8 @@ struct RegistrationCase {
     /// offline::GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01). With 0.01
     /// the vertebrae met their markers by squashing tets 100-fold, and sub-verse023's ICP stage
     /// stalled at 0.46 mm mean (3.5 mm max) marker error: no step was found whose equilibrium
-    /// inverted no tet. 0.1 stalled the same way; 0.2 converges on all three (docs/registration.md).
+    /// inverted no tet. 0.1 stalled the same way; with 0.2 sub-verse018 and 023 end by a
+    /// convergence test, 013 at the iteration limit (docs/registration.md).
     double eigenvalue_floor = 0.2;
   } solver;
   offline::TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
