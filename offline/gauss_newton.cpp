@@ -144,13 +144,16 @@ class Registration {
     }
     const bool landmarks =
         stage == RegistrationStage::kLandmarks ||
-        (stage == RegistrationStage::kInitialFit && !constraints_.landmarks.empty());
+        (stage == RegistrationStage::kInitialFit && !constraints_.landmarks.empty()) ||
+        (stage == RegistrationStage::kIcpMarkers && options_.icp_stage_landmarks);
     const bool icp =
         stage == RegistrationStage::kIcpMarkers ||
         (stage == RegistrationStage::kInitialFit && (constraints_.landmarks.empty() || free_));
     if (landmarks) {
+      // In the ICP stage they follow its weight ramp too (icp_stage_landmarks).
+      const double scale = stage == RegistrationStage::kIcpMarkers ? icp_weight_scale_ : 1.0;
       for (PointConstraint c : constraints_.landmarks) {
-        c.weight *= options_.alpha;
+        c.weight *= options_.alpha * scale;
         list.push_back(c);
       }
     }
@@ -208,8 +211,9 @@ class Registration {
   }
 
   // The Gauss–Newton direction at (s, x) for the objective terms (eqs. 10–14).
-  bool direction(RegistrationStage stage, const PointConstraints& terms, Eigen::VectorXd& step,
-                 GaussNewtonIteration& record, std::string* why) {
+  // damping μ ≥ 0: the step of ((1 + μ)L² + ZᵀZ) Δs = −g (GaussNewtonOptions::damped_step_trials).
+  bool direction(RegistrationStage stage, const PointConstraints& terms, double damping,
+                 Eigen::VectorXd& step, GaussNewtonIteration& record, std::string* why) {
     const double damping_floor =
         stage == RegistrationStage::kAttachments ? options_.attachment_stage_damping_floor : 0.0;
     Clock::time_point start = Clock::now();
@@ -227,19 +231,65 @@ class Registration {
     const Eigen::VectorXd Ls = laplacian_ * s;
     Eigen::VectorXd gradient = laplacian_ * Ls;
     gradient.noalias() += jacobian->Zt * jacobian->residual;
+    // (1 + μ)L² + ZᵀZ = (1 + μ)(L² + Z̃ᵀZ̃) with Z̃ = Z/√(1 + μ): the same Woodbury solve.
+    if (damping > 0.0) jacobian->Zt *= 1.0 / std::sqrt(1.0 + damping);
     WoodburyStatus solved = woodbury_.set_constraint_rows_transposed(
         std::move(jacobian->Zt), options_.nullspace_damping, damping_floor);
     step.resize(s.size());
     if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
-    // The quadratic model's decrease for the exact step (HΔs = −g): −gᵀΔs − ½ΔsᵀHΔs = −½gᵀΔs.
+    if (damping > 0.0) step /= 1.0 + damping;
+    // The (undamped) quadratic model's decrease for the step: −gᵀΔs − ½ΔsᵀHΔs, where
+    // HΔs = −g − μL²Δs, so −½gᵀΔs + ½μ‖LΔs‖² (−½gᵀΔs for the plain step).
     record.predicted_decrease = -0.5 * gradient.dot(step);
+    if (damping > 0.0) {
+      const Eigen::VectorXd Ld = laplacian_ * step;
+      record.predicted_decrease += 0.5 * damping * Ld.squaredNorm();
+    }
     record.woodbury_seconds = seconds_since(start);
     if (solved != WoodburyStatus::kOk) {
       *why = std::string("Woodbury solve: ") + to_string(solved);
       return false;
     }
+    // The equilibrium's first-order move for the step, dx = K⁻¹(−∂f/∂s Δs) (a free object's
+    // K⁺, without the rigid correction that move_to applies anyway): the warm start of the line
+    // search's equilibria (predictor_warm_start). One more back-substitution with the factor
+    // the Jacobian used; ∂f/∂s is still the one evaluated at (s, x) for it.
+    predicted_dx_.resize(0);
+    if (options_.predictor_warm_start) {
+      const Eigen::VectorXd rhs = -(energy_.force_jacobian() * step);
+      Eigen::VectorXd dx(rhs.size());
+      bool ok = false;
+      if (free_) {
+        Eigen::MatrixXd W;
+        ok = free_tangent_.solve(rhs, W) == SparseCholeskyStatus::kOk && W.cols() == 1;
+        if (ok) dx = W.col(0);
+      } else {
+        ok = tangent_.solve(rhs, dx) == SparseCholeskyStatus::kOk;
+      }
+      if (ok && dx.allFinite()) predicted_dx_ = std::move(dx);
+    }
     return true;
   }
+
+  // Whether no tet of x is inverted relative to its rest orientation: the equilibrium solver
+  // keeps tets from inverting only when they are not inverted at its start.
+  bool inverts_no_tet(const Eigen::VectorXd& at) const {
+    const auto& t = energy_.tets();
+    const Eigen::VectorXd& rest = energy_.rest_dofs();
+    for (Eigen::Index e = 0; e < t.rows(); ++e) {
+      const auto volume = [&](const Eigen::VectorXd& q) {
+        const Eigen::Vector3d a = q.segment<3>(3 * t(e, 0));
+        return (q.segment<3>(3 * t(e, 1)) - a)
+            .cross(q.segment<3>(3 * t(e, 2)) - a)
+            .dot(q.segment<3>(3 * t(e, 3)) - a);
+      };
+      if (volume(at) * volume(rest) <= 0.0) return false;
+    }
+    return true;
+  }
+
+  // dx of the last direction() (empty when none): x + η·dx predicts the equilibrium at s + η·Δs.
+  const Eigen::VectorXd& predicted_dx() const { return predicted_dx_; }
 
   const PlasticElasticEnergy& energy() const { return energy_; }
   const RegistrationConstraints& constraints() const { return constraints_; }
@@ -264,6 +314,7 @@ class Registration {
   double diagonal_ = 1.0;  // of the template's bounding box: the scale of "no rigid motion left"
   double icp_weight_scale_ = 1.0;
   bool icp_point_to_plane_ = false;
+  Eigen::VectorXd predicted_dx_;
 };
 
 // NLopt's C callback for the constant-s fit.
@@ -542,6 +593,12 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
   if (!(eigenvalue_floor > 0.0 && std::isfinite(eigenvalue_floor))) {
     return invalid("eigenvalue_floor", eigenvalue_floor, "must be > 0");
   }
+  if (damped_step_trials < 0 || damped_step_trials > 100)
+    return invalid("damped_step_trials", damped_step_trials, "must be in [0, 100]");
+  if (!(damping_start > 0.0 && std::isfinite(damping_start)))
+    return invalid("damping_start", damping_start, "must be > 0");
+  if (!(damping_growth > 1.0 && std::isfinite(damping_growth)))
+    return invalid("damping_growth", damping_growth, "must be > 1");
   if (auto message = equilibrium.validate()) return "equilibrium." + *message;
   if (auto message = woodbury.validate()) return "woodbury." + *message;
   return std::nullopt;
@@ -729,7 +786,9 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
   r.x = result.x;
   std::vector<RegistrationStage> stages;
   if (!free) stages.push_back(RegistrationStage::kAttachments);
-  if (!constraints.landmarks.empty()) stages.push_back(RegistrationStage::kLandmarks);
+  if (!constraints.landmarks.empty() &&
+      (options.landmark_stage || constraints.icp_markers.empty() || !options.icp_stage_landmarks))
+    stages.push_back(RegistrationStage::kLandmarks);
   if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
   const RegistrationStage final_stage = stages.back();
   // The stage to start with (stages.size(): all done) and its first iteration.
@@ -927,19 +986,13 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         summary.message = error;
         break;
       }
-      if (!r.direction(stage, *terms, step, record, &error)) {
-        termination = GaussNewtonTermination::kLinearSolveFailed;
-        summary.message = error;
-        break;
+      // The damping to start from: the last iteration's, relaxed (damped_step_trials).
+      double damping = 0.0;
+      if (options.damped_step_trials > 0 && !summary.iterations.empty()) {
+        damping = summary.iterations.back().damping / options.damping_growth;
+        if (damping < options.damping_start) damping = 0.0;
       }
-      // §3.4: keep Fp positive definite (eigenvalues ≥ floor), then search along the result.
-      // When that search finds no decrease and tets were clamped, the projected path
-      // s(η) = clamp(s + η·d) is searched as well (GaussNewtonOptions::projected_search_fallback).
-      Eigen::VectorXd target = r.s + step;
-      record.clamped_tets = static_cast<int>(
-          clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
-      const Eigen::VectorXd direction = step;
-      step = target - r.s;
+      Eigen::VectorXd direction, best_s = r.s;
       bool projected = false, best_projected = false;
       const auto state_at = [&](double eta, Eigen::VectorXd& s_eta) {
         if (!projected) {
@@ -949,33 +1002,77 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         s_eta = r.s + eta * direction;
         clamp_plastic_state_eigenvalues(s_eta, options.eigenvalue_floor);
       };
-      const Clock::time_point search_start = Clock::now();
       double best_value = before;
       double best_eta = 0.0;
       Eigen::VectorXd best_x = r.x;
+      Eigen::VectorXd trial_dx;  // the equilibrium's predicted move for the trial's step
       auto phi = [&](double eta) {
         Eigen::VectorXd s_trial;
         state_at(eta, s_trial);
         Eigen::VectorXd x_trial = r.x;
+        // Warm start at the linear prediction of the equilibrium (predictor_warm_start); from x
+        // itself when there is none or it fails.
+        bool solved = false;
+        if (!projected && trial_dx.size() == x_trial.size()) {
+          x_trial.noalias() += eta * trial_dx;
+          // The prediction may invert tets, which the solver then need not undo (it only keeps
+          // tets that start uninverted so): an equilibrium with an inverted tet is solved again
+          // from x. Starting from x alone instead stalled sub-verse023 (34 s per iteration).
+          solved = r.solve_equilibrium(s_trial, x_trial) && r.inverts_no_tet(x_trial);
+          if (!solved) x_trial = r.x;
+        }
         // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0.
-        if (!r.solve_equilibrium(s_trial, x_trial)) return 1e300 * (1.0 + eta);
+        if (!solved && !r.solve_equilibrium(s_trial, x_trial)) return 1e300 * (1.0 + eta);
         const double value = r.objective(s_trial, x_trial, *terms);
         if (value < best_value) {
           best_value = value;
           best_eta = eta;
           best_x = x_trial;
+          best_s = s_trial;
           best_projected = projected;
         }
         return value;
       };
-      // The full step first (Gauss–Newton's natural guess). It is taken as is when it achieved
-      // at least full_step_acceptance of the model's decrease (and no tet was clamped, which would
-      // change the step); otherwise Brent searches [0, max_step] (§3.4).
-      const double full = phi(std::min(1.0, options.max_step));
-      const bool full_step_good =
-          record.clamped_tets == 0 && options.full_step_acceptance > 0.0 &&
-          record.predicted_decrease > 0.0 &&
-          before - full >= options.full_step_acceptance * record.predicted_decrease;
+      bool full_step_good = false;
+      bool linear_failed = false;
+      Clock::time_point search_start = Clock::now();
+      for (int trial = 0;; ++trial) {
+        if (!r.direction(stage, *terms, damping, step, record, &error)) {
+          linear_failed = true;
+          break;
+        }
+        // §3.4: keep Fp positive definite (eigenvalues ≥ floor), then search along the result.
+        // When that search finds no decrease and tets were clamped, the projected path
+        // s(η) = clamp(s + η·d) is searched as well (GaussNewtonOptions::
+        // projected_search_fallback).
+        Eigen::VectorXd target = r.s + step;
+        record.clamped_tets = static_cast<int>(
+            clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+        record.damping = damping;
+        trial_dx = r.predicted_dx();
+        direction = step;
+        step = target - r.s;
+        search_start = Clock::now();
+        // The full step first (Gauss–Newton's natural guess). It is taken as is when it achieved
+        // at least full_step_acceptance of the model's decrease (and no tet was clamped, which
+        // would change the step); otherwise a more damped direction is tried
+        // (damped_step_trials), and after the last one Brent searches [0, max_step] (§3.4).
+        const double full = phi(std::min(1.0, options.max_step));
+        // With damped trials the test is on Φ at the clamped state itself (a few tets at the
+        // floor need not spoil a step that achieves the model's decrease); without, as before.
+        full_step_good = (record.clamped_tets == 0 || options.damped_step_trials > 0) &&
+                         options.full_step_acceptance > 0.0 && record.predicted_decrease > 0.0 &&
+                         before - full >= options.full_step_acceptance * record.predicted_decrease;
+        // The best state of all trials is taken (phi keeps it), usually this full step.
+        if (full_step_good) break;
+        if (trial >= options.damped_step_trials) break;
+        damping = damping == 0.0 ? options.damping_start : damping * options.damping_growth;
+      }
+      if (linear_failed) {
+        termination = GaussNewtonTermination::kLinearSolveFailed;
+        summary.message = error;
+        break;
+      }
       if (!full_step_good) {
         brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
                        options.line_search_evaluations - 1);
@@ -999,7 +1096,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         stage_done = !ramping;
       } else {
         projected = best_projected;
-        state_at(best_eta, r.s);
+        r.s = best_s;
         r.x = best_x;
         if (free) r.rigid_update(stage, r.x, rigid_rounds(stage));
         record.step = best_eta;
@@ -1010,8 +1107,13 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         if (progress) progress(record);
         if (ramping) {
           // The stopping tests wait for the full weight.
-        } else if (stage == RegistrationStage::kIcpMarkers && options.max_marker_error > 0.0 &&
+        } else if ((stage == RegistrationStage::kIcpMarkers ||
+                    (stage == RegistrationStage::kLandmarks && stage != final_stage)) &&
+                   options.max_marker_error > 0.0 &&
                    record.marker_error_max <= options.max_marker_error) {
+          // The ICP stage's markers met; or the landmarks met in a landmark stage that only
+          // prepares the ICP stage (its further iterations polish the smoothness the ICP stage
+          // changes anyway: 10-20 iterations of relative decreases ~1e-5 on the vertebrae).
           termination = GaussNewtonTermination::kMarkerTolerance;
           stage_done = true;
         } else if (best_eta < options.min_step) {

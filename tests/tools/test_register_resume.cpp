@@ -55,6 +55,9 @@ fs::path write_case(const fs::path& dir, bool free_object, int max_iterations) {
     landmarks.push_back({{"template", {p.x(), p.y(), p.z()}}, {"target", {q.x(), q.y(), q.z()}}});
   }
   c["landmarks"] = landmarks;
+  // sinew-register fits landmarks inside the ICP stage by default; the separate landmark stage
+  // keeps a stage boundary to be killed across.
+  c["weights"]["landmark_stage"] = true;
   c["stop"] = {{"max_iterations", max_iterations}, {"max_marker_error", 1e-9}, {"min_step", 0.0}};
   if (free_object) c.erase("attachments");
   write_text(dir / "case.json", c.dump(1));

@@ -228,7 +228,7 @@ RegistrationCase read_registration_case(const std::string& path) {
   const nlohmann::json doc = read_json_file(path);
   const JsonCursor root(doc, path);
   root.expect_keys({"template", "units", "mesh", "attachments", "landmarks", "icp_markers",
-                    "weights", "stop", "transfer", "scan_image"});
+                    "weights", "stop", "solver", "transfer", "scan_image"});
   RegistrationCase c;
   c.case_path = path;
   c.template_path = resolve(path, root.at("template"));
@@ -291,7 +291,7 @@ RegistrationCase read_registration_case(const std::string& path) {
   if (root.has("weights")) {
     const JsonCursor w = root.at("weights");
     w.expect_keys({"alpha", "beta", "attachment_stiffness", "icp_weight_ramp",
-                   "icp_point_to_plane_iterations"});
+                   "icp_point_to_plane_iterations", "icp_stage_landmarks", "landmark_stage"});
     if (w.has("alpha")) c.weights.alpha = w.at("alpha").positive_number();
     if (w.has("beta")) {
       const double beta = w.at("beta").finite_number();
@@ -314,6 +314,22 @@ RegistrationCase read_registration_case(const std::string& path) {
       c.weights.icp_point_to_plane_iterations =
           integer_in(w.at("icp_point_to_plane_iterations"), 0, 100000);
     }
+    if (w.has("icp_stage_landmarks"))
+      c.weights.icp_stage_landmarks = w.at("icp_stage_landmarks").boolean();
+    if (w.has("landmark_stage")) c.weights.landmark_stage = w.at("landmark_stage").boolean();
+  }
+  if (root.has("solver")) {
+    const JsonCursor v = root.at("solver");
+    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor"});
+    if (v.has("eigenvalue_floor")) {
+      const double f = v.at("eigenvalue_floor").finite_number();
+      if (!(f > 0 && f < 1)) v.at("eigenvalue_floor").fail("= " + number(f) + " must be in (0, 1)");
+      c.solver.eigenvalue_floor = f;
+    }
+    if (v.has("predictor_warm_start"))
+      c.solver.predictor_warm_start = v.at("predictor_warm_start").boolean();
+    if (v.has("damped_step_trials"))
+      c.solver.damped_step_trials = integer_in(v.at("damped_step_trials"), 0, 100);
   }
   if (root.has("stop")) {
     const JsonCursor s = root.at("stop");

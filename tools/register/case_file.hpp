@@ -97,10 +97,18 @@ struct RegistrationWeights {
   /// femur pair 0.391 → 0.335 mm mean symmetric distance; gluteus medius 2.04 / 0.73 → 0.73 /
   /// 0.58 mm, worst 13.6 → 5.6 mm).
   int icp_point_to_plane_iterations = 10;
+  /// Landmarks stay in the ICP stage's objective (offline::GaussNewtonOptions::
+  /// icp_stage_landmarks); default true: the user's correspondences are met in the result too.
+  bool icp_stage_landmarks = true;
+  /// offline::GaussNewtonOptions::landmark_stage: with landmarks in the ICP stage and ICP
+  /// markers, the separate landmark stage runs only when this is true; default false.
+  bool landmark_stage = false;
 };
 
 struct RegistrationStop {
-  int max_iterations_per_stage = 20;  ///< ≥ 0
+  /// ≥ 0. 40: the ICP stage's ramp and point-to-plane phase take the first 10, and the damped
+  /// steps (Solver::damped_step_trials) of the vertebrae need 15-30 more to meet the markers.
+  int max_iterations_per_stage = 40;
   /// ICP stop tolerance in the case's units; std::nullopt: 0.1% of the template's diagonal.
   std::optional<double> max_marker_error;
   double min_step = 0.01;  ///< in [0, 1)
@@ -111,6 +119,20 @@ struct RegistrationCase {
   std::string template_path;  ///< resolved against the case file's folder
   bool template_is_tet_mesh = false;
   LengthUnit units = LengthUnit::kUnspecified;
+  struct Solver {
+    /// offline::GaussNewtonOptions::damped_step_trials ("solver": {"damped_step_trials": N}).
+    /// Default 4 (μ up to 1e3 of the smoothness term): without it the ICP stage on real
+    /// vertebrae (issue 18) clamped 10–18% of the tets per step and stalled.
+    int damped_step_trials = 4;
+    /// offline::GaussNewtonOptions::predictor_warm_start; default true.
+    bool predictor_warm_start = true;
+    /// offline::GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01). With 0.01
+    /// the vertebrae met their markers by squashing tets 100-fold, and sub-verse023's ICP stage
+    /// stalled at 0.46 mm mean (3.5 mm max) marker error: no step was found whose equilibrium
+    /// inverted no tet. 0.1 stalled the same way; with 0.2 sub-verse018 and 023 end by a
+    /// convergence test, 013 at the iteration limit (docs/registration.md).
+    double eigenvalue_floor = 0.2;
+  } solver;
   offline::TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
   bool mesh_options_given = false;
   PointPairSet attachments;

@@ -110,6 +110,7 @@ nlohmann::json iteration_json(const GaussNewtonIteration& it) {
           {"equilibrium_solves", it.equilibrium_solves},
           {"clamped_tets", it.clamped_tets},
           {"projected_search", it.projected_search},
+          {"damping", hex_double(it.damping)},
           {"jacobian_seconds", hex_double(it.jacobian_seconds)},
           {"woodbury_seconds", hex_double(it.woodbury_seconds)},
           {"line_search_seconds", hex_double(it.line_search_seconds)},
@@ -136,6 +137,8 @@ GaussNewtonIteration read_iteration(const Reader& r, const nlohmann::json& j,
   if (j.contains("projected_search")) {
     it.projected_search = r.boolean(j.at("projected_search"), where + "projected_search");
   }
+  // Absent in checkpoints written before the damped steps existed (undamped).
+  if (j.contains("damping")) it.damping = real("damping");
   it.jacobian_seconds = real("jacobian_seconds");
   it.woodbury_seconds = real("woodbury_seconds");
   it.line_search_seconds = real("line_search_seconds");

@@ -501,6 +501,11 @@ int run(const RunRequest& request) {
   options.min_step = c.stop.min_step;
   options.icp_weight_ramp = c.weights.icp_weight_ramp;
   options.icp_point_to_plane_iterations = c.weights.icp_point_to_plane_iterations;
+  options.icp_stage_landmarks = c.weights.icp_stage_landmarks;
+  options.landmark_stage = c.weights.landmark_stage;
+  options.damped_step_trials = c.solver.damped_step_trials;
+  options.predictor_warm_start = c.solver.predictor_warm_start;
+  options.eigenvalue_floor = c.solver.eigenvalue_floor;
   if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
 
   // What a checkpoint must match to be resumed here: mode, mesh, markers, output surface, options.
@@ -525,7 +530,12 @@ int run(const RunRequest& request) {
                                {"attachment_stiffness", tools::hex_double(stiffness)},
                                {"max_iterations_per_stage", options.max_iterations_per_stage},
                                {"max_marker_error", tools::hex_double(options.max_marker_error)},
-                               {"min_step", tools::hex_double(options.min_step)}};
+                               {"min_step", tools::hex_double(options.min_step)},
+                               {"icp_stage_landmarks", options.icp_stage_landmarks},
+                               {"landmark_stage", options.landmark_stage},
+                               {"damped_step_trials", options.damped_step_trials},
+                               {"predictor_warm_start", options.predictor_warm_start},
+                               {"eigenvalue_floor", tools::hex_double(options.eigenvalue_floor)}};
   for (const double f : options.icp_weight_ramp) {
     identification["options"]["icp_weight_ramp"].push_back(tools::hex_double(f));
   }
@@ -595,7 +605,9 @@ int run(const RunRequest& request) {
   // bound: stages usually stop early).
   std::vector<offline::RegistrationStage> stages;
   if (!free_object) stages.push_back(offline::RegistrationStage::kAttachments);
-  if (!constraints.landmarks.empty()) stages.push_back(offline::RegistrationStage::kLandmarks);
+  if (!constraints.landmarks.empty() &&
+      (options.landmark_stage || constraints.icp_markers.empty() || !options.icp_stage_landmarks))
+    stages.push_back(offline::RegistrationStage::kLandmarks);
   if (!constraints.icp_markers.empty()) stages.push_back(offline::RegistrationStage::kIcpMarkers);
   double iteration_seconds = 0.0;
   int iterations_timed = 0;
@@ -681,7 +693,9 @@ int run(const RunRequest& request) {
                           {"marker_error_mean", it.marker_error_mean * frame.scale},
                           {"marker_error_max", it.marker_error_max * frame.scale},
                           {"equilibrium_solves", it.equilibrium_solves},
+                          {"predicted_decrease", it.predicted_decrease},
                           {"clamped_tets", it.clamped_tets},
+                          {"damping", it.damping},
                           {"projected_search", it.projected_search},
                           {"jacobian_seconds", it.jacobian_seconds},
                           {"woodbury_seconds", it.woodbury_seconds},
@@ -699,6 +713,21 @@ int run(const RunRequest& request) {
       {"initial_objective", summary.initial_objective},
       {"marker_error_mean", summary.marker_error_mean * frame.scale},
       {"marker_error_max", summary.marker_error_max * frame.scale}};
+
+  if (summary.usable() && !constraints.landmarks.empty()) {
+    // The landmarks at the result (the ICP stage may or may not have kept them).
+    double sum = 0.0, largest = 0.0;
+    for (const offline::PointConstraint& pc : constraints.landmarks) {
+      const double e =
+          (offline::embedded_position(tets, pc.point, result.x) - pc.target).norm() * frame.scale;
+      sum += e;
+      largest = std::max(largest, e);
+    }
+    const double mean = sum / static_cast<double>(constraints.landmarks.size());
+    report["final"]["landmark_error_mean"] = mean;
+    report["final"]["landmark_error_max"] = largest;
+    log.line("landmarks at the result: mean {:.4g} max {:.4g}{}", mean, largest, u);
+  }
 
   nlohmann::json written = nlohmann::json::array();
   if (summary.usable()) {
@@ -741,7 +770,17 @@ int run(const RunRequest& request) {
       const tools::SurfaceDistanceStats from_truth =
           tools::vertex_to_surface_distances(*truth, deformed);
       const double farthest = std::max(to_truth.max, from_truth.max);
+      // The vertex means above weigh each surface by its mesh density; the peers' figure
+      // (issue 18) is area-uniform: 30,000 samples on each surface, mean over both.
+      const tools::SymmetricSurfaceDistance sampled =
+          tools::sampled_surface_distance(deformed, *truth);
       report["truth"] = {{"surface", request.truth_path},
+                         {"symmetric_mean_area_sampled", sampled.mean},
+                         {"samples_per_surface", sampled.samples},
+                         {"result_samples_to_truth_mean", sampled.a_to_b.mean},
+                         {"result_samples_to_truth_max", sampled.a_to_b.max},
+                         {"truth_samples_to_result_mean", sampled.b_to_a.mean},
+                         {"truth_samples_to_result_max", sampled.b_to_a.max},
                          {"result_to_truth_mean", to_truth.mean},
                          {"result_to_truth_max", to_truth.max},
                          {"truth_to_result_mean", from_truth.mean},
@@ -752,6 +791,10 @@ int run(const RunRequest& request) {
           "mean {:.4g} max {:.4g}{}; worst {:.2f}% of the diagonal",
           request.truth_path, to_truth.mean, to_truth.max, u, from_truth.mean, from_truth.max, u,
           100 * farthest / frame.scale);
+      log.line(
+          "truth: symmetric surface distance {:.4g}{} (mean over {} area-uniform samples on each "
+          "surface: result to truth {:.4g}, truth to result {:.4g}{})",
+          sampled.mean, u, sampled.samples, sampled.a_to_b.mean, sampled.b_to_a.mean, u);
     }
 
     // The deformed tet mesh, in the user's frame (result.vtu below).

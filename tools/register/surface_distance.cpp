@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include "offline/surface_closest_point.hpp"
 
@@ -116,6 +117,64 @@ SurfaceDistanceStats vertex_to_surface_distances(const offline::io::SurfaceMesh&
     stats.max = std::max(stats.max, d);
   }
   return stats;
+}
+
+Eigen::MatrixXd area_uniform_samples(const offline::io::SurfaceMesh& surface, int samples,
+                                     std::uint64_t seed) {
+  const Eigen::Index num_triangles = surface.triangles.rows();
+  std::vector<double> cumulative(static_cast<std::size_t>(num_triangles));
+  double total = 0.0;
+  for (Eigen::Index f = 0; f < num_triangles; ++f) {
+    const Eigen::Vector3d a = surface.vertices.row(surface.triangles(f, 0)).transpose();
+    const Eigen::Vector3d b = surface.vertices.row(surface.triangles(f, 1)).transpose();
+    const Eigen::Vector3d c = surface.vertices.row(surface.triangles(f, 2)).transpose();
+    total += 0.5 * (b - a).cross(c - a).norm();
+    cumulative[static_cast<std::size_t>(f)] = total;
+  }
+  std::mt19937_64 engine(seed);
+  const auto uniform = [&engine] {  // [0, 1), the same on every standard library
+    return static_cast<double>(engine() >> 11) * 0x1.0p-53;
+  };
+  Eigen::MatrixXd points(std::max(samples, 0), 3);
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const double pick = uniform() * total;
+    const auto at = std::upper_bound(cumulative.begin(), cumulative.end(), pick);
+    const Eigen::Index f = std::min<Eigen::Index>(at - cumulative.begin(), num_triangles - 1);
+    double u = uniform(), v = uniform();
+    if (u + v > 1.0) {  // fold the parallelogram's far half onto the triangle
+      u = 1.0 - u;
+      v = 1.0 - v;
+    }
+    const Eigen::RowVector3d a = surface.vertices.row(surface.triangles(f, 0));
+    const Eigen::RowVector3d b = surface.vertices.row(surface.triangles(f, 1));
+    const Eigen::RowVector3d c = surface.vertices.row(surface.triangles(f, 2));
+    points.row(i) = a + u * (b - a) + v * (c - a);
+  }
+  return points;
+}
+
+SymmetricSurfaceDistance sampled_surface_distance(const offline::io::SurfaceMesh& a,
+                                                  const offline::io::SurfaceMesh& b, int samples,
+                                                  std::uint64_t seed) {
+  const auto one_way = [samples](const offline::io::SurfaceMesh& from,
+                                 const offline::io::SurfaceMesh& to, std::uint64_t draw) {
+    const Eigen::MatrixXd points = area_uniform_samples(from, samples, draw);
+    const SurfaceDistance query(to);
+    SurfaceDistanceStats stats;
+    for (Eigen::Index i = 0; i < points.rows(); ++i) {
+      const double d = query.distance(points.row(i).transpose());
+      stats.mean += d;
+      stats.max = std::max(stats.max, d);
+    }
+    if (points.rows() > 0) stats.mean /= static_cast<double>(points.rows());
+    return stats;
+  };
+  SymmetricSurfaceDistance result;
+  result.samples = std::max(samples, 0);
+  result.a_to_b = one_way(a, b, seed);
+  result.b_to_a = one_way(b, a, seed + 1);
+  result.mean = 0.5 * (result.a_to_b.mean + result.b_to_a.mean);
+  return result;
 }
 
 Eigen::Vector3d SurfaceDistance::triangle_normal(Eigen::Index f) const {

@@ -5,6 +5,7 @@
 /// slid along the right surface scores as well as one that kept its correspondence.
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "offline/io/surface_mesh_io.hpp"
@@ -57,5 +58,26 @@ struct SurfaceDistanceStats {
 /// from's vertices to the surface to (one-sided).
 SurfaceDistanceStats vertex_to_surface_distances(const offline::io::SurfaceMesh& from,
                                                  const offline::io::SurfaceMesh& to);
+
+/// `samples` points spread uniformly by area over a surface (a triangle drawn with probability
+/// proportional to its area, then a uniform point in it), as #samples by 3. Deterministic for a
+/// seed on every platform (std::mt19937_64's raw output, mapped to [0, 1) here, not through the
+/// library's distributions).
+Eigen::MatrixXd area_uniform_samples(const offline::io::SurfaceMesh& surface, int samples,
+                                     std::uint64_t seed);
+
+/// The symmetric surface distance of two surfaces as the vertebra peers are scored
+/// (../shared/data/vertebrae, issue 18): `samples` area-uniform points on each surface, the exact
+/// point-to-triangle distance of each to the other surface; `mean` is the mean over both sets.
+/// Unlike vertex_to_surface_distances it does not weigh a surface by where its mesh is dense.
+struct SymmetricSurfaceDistance {
+  SurfaceDistanceStats a_to_b;
+  SurfaceDistanceStats b_to_a;
+  double mean = 0.0;
+  int samples = 0;
+};
+SymmetricSurfaceDistance sampled_surface_distance(const offline::io::SurfaceMesh& a,
+                                                  const offline::io::SurfaceMesh& b,
+                                                  int samples = 30000, std::uint64_t seed = 1);
 
 }  // namespace sinew::tools
