@@ -526,7 +526,8 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
        }),
        {},
        "case.json: unknown key 'alhpa' in weights (expected one of: alpha, beta, "
-       "attachment_stiffness, icp_weight_ramp, icp_point_to_plane_iterations, icp_stage_landmarks, landmark_stage)",
+       "attachment_stiffness, icp_weight_ramp, icp_point_to_plane_iterations, icp_stage_landmarks, "
+       "landmark_stage)",
        "case.json"},
       {"scan_image_missing",
        with([](auto& j) {
