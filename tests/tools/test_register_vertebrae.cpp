@@ -47,7 +47,7 @@ void PrintTo(const VertebraCase& c, std::ostream* os) {
 
 class RegisterVertebra : public ::testing::TestWithParam<VertebraCase> {};
 
-TEST_P(RegisterVertebra, BeatsThePeersAndConverges) {
+TEST_P(RegisterVertebra, MeetsMarkersAndLandmarksWithoutAFailedLineSearch) {
   const VertebraCase& vc = GetParam();
   const fs::path case_file = kData / "cases" / vc.name / "case.json";
   const fs::path truth = kData / (std::string(vc.name) + "_segment_20.ply");
