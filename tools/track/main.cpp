@@ -520,6 +520,9 @@ int main(int argc, char** argv) {
                  "--whiskers: arc-length window from the follicle for the curvature, pixels "
                  "(two numbers, default 0 30)")
       ->expected(2);
+  app.add_option("--moment-elements", readout.moment_elements,
+                 "--whiskers: M0 from this many elements from the follicle (default 3)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--csv", csv, "--whiskers: also write one row per whisker per frame (CSV)");
   std::string plots, hdf5;
   app.add_option("--hdf5", hdf5,
