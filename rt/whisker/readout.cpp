@@ -144,6 +144,16 @@ Eigen::Vector2d tangent_at(const Eigen::Matrix2Xd& rest, const Eigen::Matrix2Xd&
 
 }  // namespace
 
+common::Vector6d WhiskerReadoutModel::first_element_load(
+    const Eigen::Ref<const Eigen::VectorXd>& u) const noexcept {
+  common::Vector6d ue = u.segment<6>(0);
+  for (int i : {0, 1, 3, 4}) ue[i] *= length_unit_;  // pixels → the reported length unit
+  common::Vector6d p;
+  common::evaluate_beam_element(reference_, section_, common::BeamPrestress{}, ue, nullptr, &p,
+                                nullptr);
+  return p;
+}
+
 void WhiskerReadoutModel::set_rest(const Eigen::Ref<const Eigen::VectorXd>& u) noexcept {
   rest_curvature_ = 0.0;
   rest_load_.setZero();
@@ -151,10 +161,7 @@ void WhiskerReadoutModel::set_rest(const Eigen::Ref<const Eigen::VectorXd>& u) n
   const WhiskerReadout r = evaluate(u);
   rest_curvature_ = r.curvature;
   // The first element's load at rest, in full (force and its moment at the node).
-  common::Vector6d ue = u.segment<6>(0);
-  for (int i : {0, 1, 3, 4}) ue[i] *= length_unit_;
-  common::evaluate_beam_element(reference_, section_, common::BeamPrestress{}, ue, nullptr,
-                                &rest_load_, nullptr);
+  rest_load_ = first_element_load(u);
   for (int i = 3; i < 6; ++i) rest_load_[i] = 0.0;
   for (int e = 0; e < rest_moment_.size(); ++e) {
     rest_moment_[e] = bending_[e] * (u[3 * e + 5] - u[3 * e + 2]) / length_px_[e] / length_unit_;
@@ -178,14 +185,7 @@ WhiskerReadout WhiskerReadoutModel::evaluate(
   r.delta_curvature = r.curvature - rest_curvature_;
 
   // The follicle's load on the whisker: the first element's internal force at its first node.
-  common::Vector6d ue = u.segment<6>(0);
-  ue[0] *= length_unit_;
-  ue[1] *= length_unit_;
-  ue[3] *= length_unit_;
-  ue[4] *= length_unit_;
-  common::Vector6d p;
-  common::evaluate_beam_element(reference_, section_, common::BeamPrestress{}, ue, nullptr, &p,
-                                nullptr);
+  common::Vector6d p = first_element_load(u);
   p -= rest_load_;
   r.force = p.head<2>();
   r.moment_first_element = p[2];

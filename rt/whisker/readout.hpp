@@ -113,6 +113,9 @@ class WhiskerReadoutModel {
   void set_rest(const Eigen::Ref<const Eigen::VectorXd>& u) noexcept;
 
  private:
+  // The first element's internal force p (6) at state u, in the reported units.
+  common::Vector6d first_element_load(const Eigen::Ref<const Eigen::VectorXd>& u) const noexcept;
+
   WhiskerReadoutOptions options_;
   std::string error_;
   Eigen::Matrix2Xd rest_;                   // reference nodes, pixels

@@ -306,6 +306,8 @@ WhiskerAssociation WhiskerTracker::associate(
   // cost(i, k): whisker order_w[i] against detection order_d[k] under a common shift of the pad.
   const double fs = options_.associate_follicle_px;
   const double as = options_.associate_angle_deg * M_PI / 180.0;
+  std::vector<double> detected_length(detected.size(), 0.0);
+  for (int d : cand) detected_length[d] = arc_lengths(detected[d]).back();
   std::vector<double> angle(static_cast<std::size_t>(n) * m);
   for (int i = 0; i < n; ++i) {
     const int w = order_w[i];
@@ -315,8 +317,7 @@ WhiskerAssociation WhiskerTracker::associate(
       angle[i * m + k] = std::acos(std::clamp(dd.dot(dw[w]), -1.0, 1.0));
       // A detection much shorter than the whisker (a faint or blurred stretch ended its trace)
       // cannot place it: nodes past its end would be guessed.
-      if (arc_lengths(detected[order_d[k]]).back() <
-          options_.associate_min_length_fraction * rest_length(w)) {
+      if (detected_length[order_d[k]] < options_.associate_min_length_fraction * rest_length(w)) {
         angle[i * m + k] = std::numeric_limits<double>::infinity();
       }
     }
@@ -418,7 +419,7 @@ WhiskerAssociation WhiskerTracker::associate(
       // Placed without a fit: only where the detection covers the whisker; a short one would
       // leave its outer nodes guessed.
       const bool covers =
-          arc_lengths(pts).back() >= options_.associate_cover_fraction * rest_length(w);
+          detected_length[match[w]] >= options_.associate_cover_fraction * rest_length(w);
       r.status = covers ? FrameStatus::kNotConverged : FrameStatus::kLost;
     }
     r.reacquired = true;

@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <utility>
 
 #include "rt/whisker/contact.hpp"
 #include "rt/whisker/detection.hpp"
@@ -219,11 +220,11 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         args.redetect == "every" || (args.redetect == "lost" && tracker->any_lost());
     if (redetect) {
       const auto t0 = std::chrono::steady_clock::now();
-      const rt::WhiskerDetection again = rt::detect_whiskers(view, detect_options);
+      rt::WhiskerDetection again = rt::detect_whiskers(view, detect_options);
       std::vector<std::vector<Eigen::Vector2d>> traces;
       for (const auto& w : again.whiskers) traces.push_back(w.points);
       if (again.error.empty()) association = tracker->associate(view, traces);
-      object_distance = again.object_distance;
+      object_distance = std::move(again.object_distance);
       have_objects = again.error.empty();
       redetect_ms =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
