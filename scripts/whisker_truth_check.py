@@ -143,6 +143,10 @@ def main():
     if per_curve:
         print("curve distance per whisker, mean px (true id): " +
               ", ".join(f"{i} ({match[i]}): {np.mean(v):.2f}" for i, v in sorted(per_curve.items())))
+    if per_curve:
+        print("frames beyond " + f"{args.max_curve_px} px per whisker: " +
+              ", ".join(f"{i}: {sum(d > args.max_curve_px for d in v)}"
+                        for i, v in sorted(per_curve.items())))
     if base_medians:
         print("base distance per whisker, median px: " +
               ", ".join(f"{i}: {v:.2f}" for i, v in sorted(base_medians.items())))

@@ -29,6 +29,8 @@ WhiskerContact find_contact(const Tracker& whisker, const float* distance, int w
   if (distance == nullptr || width < 2 || height < 2) return c;
   const common::BeamModel& model = whisker.model();
   double s0 = 0.0;
+  double run_least = std::numeric_limits<double>::infinity();
+  bool run_over = false;  // the first stretch within touch_px has ended
   for (int e = 0; e < model.num_elements(); ++e) {
     const double length = model.element(e).length;
     const int steps = std::max(1, static_cast<int>(std::ceil(length)));
@@ -38,8 +40,13 @@ WhiskerContact find_contact(const Tracker& whisker, const float* distance, int w
       const Eigen::Vector2d p = whisker.centreline(e, static_cast<double>(k) / steps).position;
       const double d = lookup(distance, width, height, p);
       c.distance_px = std::min(c.distance_px, d);
-      if (!c.touching && d <= touch_px) {
+      if (d > touch_px) {
+        run_over = run_over || c.touching;
+      } else if (!run_over && d < run_least) {
+        // The closest approach of the first stretch that touches: where a whisker bent around a
+        // pole presses on it (the stretch's first point lies ~5 px before it on an 8 px pole).
         c.touching = true;
+        run_least = d;
         c.arc_length_px = s;
         c.point = p;
       }

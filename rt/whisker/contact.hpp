@@ -1,8 +1,9 @@
 #pragma once
-/// Contact between a tracked whisker and an object in the image (a pole, a lick port): the first
-/// point along the whisker, from its follicle, that lies within `touch_px` of the object, from a
-/// distance-to-objects map (WhiskerDetection::object_distance). The arc length there is the
-/// contact point a lab reports (and where the contact load acts). No allocation.
+/// Contact between a tracked whisker and an object in the image (a pole, a lick port): the
+/// whisker touches where its centreline comes within `touch_px` of the object, from a
+/// distance-to-objects map (WhiskerDetection::object_distance); the contact point is the closest
+/// approach along the first such stretch from the follicle. Its arc length is the contact point a
+/// lab reports (and where the contact load acts). No allocation.
 
 #include <Eigen/Core>
 

@@ -2,6 +2,7 @@
 
 #include "rt/detail/field_error.hpp"
 
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
@@ -350,6 +351,73 @@ double polyline_length(const std::vector<Eigen::Vector2d>& pts) {
   return length;
 }
 
+// A least-squares polynomial of `degree` through a whisker's trace, x and y each in the
+// normalised arc length, fitted to the points at least `clear_px` from the face: nearer the face a
+// side sample of the ridge measure falls on it and pulls the trace away from it (rendered pad,
+// 5-grey-level whisker: 2.1 px sideways at the follicle, fading over its first 8 px). The fit is
+// extended from its first point along its tangent to the face's edge (the steepest fall of the
+// lightly smoothed image, refine_follicle), and the result resampled at 1 px. A trace with too
+// few points beyond the face keeps its own points; one the fit misses by more than max_residual_px
+// somewhere gives none (it is not one whisker).
+std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen::Vector2d>& points,
+                                          int degree, double clear_px, double max_residual_px) {
+  std::vector<double> s(points.size(), 0.0);
+  for (std::size_t i = 1; i < points.size(); ++i) {
+    s[i] = s[i - 1] + (points[i] - points[i - 1]).norm();
+  }
+  std::size_t first = 0;
+  while (first < points.size() && face_distance(m, points[first]) < clear_px) ++first;
+  const std::size_t n = points.size() - first;
+  // A short stretch is fitted by a lower degree (one per 15 points): a cubic through 30 noisy
+  // points bends at its ends.
+  degree = std::min(degree, static_cast<int>(n / 15));
+  if (degree < 1) return points;
+  const double s0 = s[first], span = s.back() - s0;
+  if (!(span > 1.0)) return points;
+  Eigen::MatrixXd V(static_cast<Eigen::Index>(n), degree + 1);
+  Eigen::MatrixXd P(static_cast<Eigen::Index>(n), 2);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double u = (s[first + i] - s0) / span;
+    double power = 1.0;
+    for (int k = 0; k <= degree; ++k, power *= u) V(static_cast<Eigen::Index>(i), k) = power;
+    P.row(static_cast<Eigen::Index>(i)) = points[first + i].transpose();
+  }
+  const Eigen::MatrixXd c = V.colPivHouseholderQr().solve(P);
+  // Whiskers are smooth: a trace no such curve follows is two whiskers, or a whisker and fur.
+  if ((V * c - P).rowwise().norm().maxCoeff() > max_residual_px) return {};
+  auto at = [&](double u) {
+    Eigen::Vector2d p = Eigen::Vector2d::Zero();
+    for (int k = degree; k >= 0; --k) p = p * u + c.row(k).transpose();
+    return p;
+  };
+  auto tangent_at = [&](double u) {
+    Eigen::Vector2d d = Eigen::Vector2d::Zero();
+    for (int k = degree; k >= 1; --k) d = d * u + k * c.row(k).transpose();
+    return d;
+  };
+  const Eigen::Vector2d start = at(0.0);
+  Eigen::Vector2d t = tangent_at(0.0);
+  if (!(t.norm() > 0.0)) return points;
+  t.normalize();
+  // Back to the face along the tangent: into the dark mask (which lies ~2 px inside the edge),
+  // at most as far as the raw trace went.
+  std::vector<Eigen::Vector2d> out;
+  const double reach = s0 + 4.0;
+  double back = 0.0;
+  while (back < reach && !is_dark(m, start - back * t)) back += 0.5;
+  for (double b = 0.0; b < back + 0.5; b += 1.0) out.push_back(start - b * t);
+  if (out.size() >= 2) refine_follicle(m, &out);  // the face at the back
+  std::reverse(out.begin(), out.end());
+  out.pop_back();  // start, the polynomial's first sample below
+  // The trace itself reached the face (ended_dark): its follicle and the extension's agree
+  // within the trace's noise; one that does not is a trace whose start turns (a hop between
+  // converging whiskers).
+  if (out.empty() || (out.front() - points.front()).norm() > 4.0) return points;
+  const int samples = std::max(2, static_cast<int>(std::ceil(span)));
+  for (int k = 0; k <= samples; ++k) out.push_back(at(static_cast<double>(k) / samples));
+  return out;
+}
+
 }  // namespace
 
 const char* to_string(FaceSide side) {
@@ -396,6 +464,15 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
   if (!(pad_band_px > 1.0)) return field_error("pad_band_px", pad_band_px, "must be > 1");
   if (!(min_separation_px > 0.0)) {
     return field_error("min_separation_px", min_separation_px, "must be > 0");
+  }
+  if (smoothing_degree < 0 || smoothing_degree > 6) {
+    return field_error("smoothing_degree", smoothing_degree, "must be in [0, 6]");
+  }
+  if (!(smoothing_clear_px >= 0.0)) {
+    return field_error("smoothing_clear_px", smoothing_clear_px, "must be >= 0");
+  }
+  if (!(smoothing_max_residual_px > 0.0)) {
+    return field_error("smoothing_max_residual_px", smoothing_max_residual_px, "must be > 0");
   }
   if (max_whiskers < 1) return field_error("max_whiskers", max_whiskers, "must be >= 1");
   return std::nullopt;
@@ -479,6 +556,11 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     for (std::size_t i = b.points.size(); i-- > 1;) w.points.push_back(b.points[i]);
     w.points.insert(w.points.end(), a.points.begin(), a.points.end());
     claim(w.points);
+    if (o.smoothing_degree > 0) {
+      w.points = smooth_trace(m, w.points, o.smoothing_degree, o.surround_px + o.smoothing_clear_px,
+                              o.smoothing_max_residual_px);
+      if (w.points.size() < 2) continue;
+    }
     w.follicle = w.points.front();
     w.length_px = polyline_length(w.points);
     w.contrast_percent = median_contrast(m, w.points);

@@ -61,6 +61,16 @@ struct WhiskerDetectionOptions {
   double max_turn_deg = 30.0;
   /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
   int max_gap_px = 12;
+  /// The trace a whisker is reported by: a least-squares polynomial of this degree in its arc
+  /// length (0: the raw trace, re-centred step by step on a noisy ridge), fitted to the points
+  /// farther than surround_px + smoothing_clear_px from the face's dark mask and extended along its
+  /// tangent to the face's edge, [0, 6]; pixels, ≥ 0. A trace the polynomial misses by more
+  /// than smoothing_max_residual_px is not one whisker and is dropped, pixels, > 0. Frame 0 of the
+  /// shared video: its whiskers' traces ≤ 0.92 px, traces that hop between the whiskers of the
+  /// dense cluster 2.2–2.5 px; rendered pads (σ 4): whiskers ≤ 1.01 px.
+  int smoothing_degree = 3;
+  double smoothing_clear_px = 8.0;
+  double smoothing_max_residual_px = 1.5;
   /// Shortest whisker reported, pixels.
   double min_length_px = 40.0;
   /// The face and other objects: smoothed intensity below this fraction of the backlight, (0, 1).

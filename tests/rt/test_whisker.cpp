@@ -2,6 +2,8 @@
 // tracker on rendered scenes with known truth (tests/support/whisker_render.hpp).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <random>
 
@@ -117,8 +119,10 @@ TEST(WhiskerDetection, FindsEveryWhiskerAndItsFollicleButNotThePoleOrARod) {
   for (std::size_t k = 0; k < s.whiskers.size(); ++k) {
     SCOPED_TRACE("whisker " + std::to_string(k));
     const auto truth = s.whiskers[k].points();
-    EXPECT_LT((d.whiskers[k].follicle - s.whiskers[k].follicle).norm(), 1.5);
-    EXPECT_LT(mean_distance(d.whiskers[k].points, truth), 0.5);
+    // The traces are smoothed (smoothing_degree): follicles 0.16–0.51 px from the truth, curves
+    // 0.10–0.23 px; the raw traces: follicles up to 1.3 px, curves up to 0.37 px.
+    EXPECT_LT((d.whiskers[k].follicle - s.whiskers[k].follicle).norm(), 1.0);
+    EXPECT_LT(mean_distance(d.whiskers[k].points, truth), 0.3);
     // The faint ones fade into the noise before their tips (6 grey levels at the follicle, 2.4 at
     // the tip, noise σ 4).
     EXPECT_GT(d.whiskers[k].length_px, 0.5 * s.whiskers[k].length);
@@ -250,7 +254,21 @@ TEST(WhiskerTracker, AssociationKeepsIdentitiesWhenTheHeadMovesFurtherThanTheSea
   const WhiskerAssociation a = tracker.associate(moved.image.view(), traces);
   std::cout << "associate: " << a.detected << " detected, " << a.matched << " matched, "
             << a.restarted << " restarted, pad shift (" << a.shift.transpose() << ")\n";
-  EXPECT_EQ(a.matched, 5);
+  // Detections shorter than associate_min_length_fraction of their whisker are not offered a
+  // match (a stub of a neighbour); every other one is matched.
+  int long_enough = 0;
+  for (const auto& w : d.whiskers) {
+    const auto nearest = std::min_element(
+        moved.whiskers.begin(), moved.whiskers.end(), [&](const auto& p, const auto& q) {
+          return (p.follicle - w.follicle).norm() < (q.follicle - w.follicle).norm();
+        });
+    double length = 0.0;
+    const auto pts = nearest->points();
+    for (std::size_t i = 1; i < pts.size(); ++i) length += (pts[i] - pts[i - 1]).norm();
+    long_enough += w.length_px >= WhiskerTrackerOptions{}.associate_min_length_fraction * length;
+  }
+  EXPECT_GE(long_enough, 4);
+  EXPECT_EQ(a.matched, long_enough);
   // Every whisker restarted lands on its own curve (a mismatched order would put it on a
   // neighbour's, 30 px away), and so does the next frame's fit from there. Fits that tracking
   // kept are kept (see associate()), even off their curve: counted, not required.

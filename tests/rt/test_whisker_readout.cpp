@@ -189,9 +189,10 @@ TEST(WhiskerReadout, CurvatureDeltaCurvatureAndBaseAngleOfExactArcs) {
   EXPECT_NEAR(r.moment, -EI * (k_now - k_rest), 0.1 * EI * (k_now - k_rest));
 }
 
-TEST(WhiskerContact, FirstPointWithinReachOfAPoleAlongTheWhisker) {
+TEST(WhiskerContact, ClosestApproachToAPoleAlongTheWhisker) {
   // A straight whisker along y = 100 from x = 50; a pole of radius 8 whose surface is 1 px from
-  // its centreline at x = 150. Within 3.5 px of the surface from x = 150 − √(11.5² − 9²).
+  // its centreline at x = 150. Within 3.5 px of the surface from x = 150 − √(11.5² − 9²) = 142.7
+  // on; the contact point is the closest approach, x = 150.
   const std::vector<std::vector<Eigen::Vector2d>> init = {{{50.0, 100.0}, {250.0, 100.0}}};
   const WhiskerTracker tracker(init);
   ASSERT_TRUE(tracker.valid()) << tracker.error();
@@ -209,7 +210,8 @@ TEST(WhiskerContact, FirstPointWithinReachOfAPoleAlongTheWhisker) {
   const auto touching = pole_map({150.0, 109.0}, 8.0);
   const WhiskerContact c = find_contact(tracker.whisker(0), touching.data(), width, height, 3.5);
   EXPECT_TRUE(c.touching);
-  EXPECT_NEAR(c.arc_length_px, 100.0 - std::sqrt(11.5 * 11.5 - 81.0), 0.6);
+  EXPECT_NEAR(c.arc_length_px, 100.0, 0.6);
+  EXPECT_NEAR(c.point.x(), 150.0, 0.6);
   EXPECT_NEAR(c.distance_px, 1.0, 0.05);
   const auto apart = pole_map({150.0, 120.0}, 8.0);  // 12 px off the centreline
   const WhiskerContact none = find_contact(tracker.whisker(0), apart.data(), width, height, 3.5);
