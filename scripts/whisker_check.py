@@ -78,6 +78,7 @@ def main():
     ap.add_argument("--results", required=True, help="sinew-track --whiskers JSON Lines")
     ap.add_argument("--min-depth", type=float, default=1.0, help="grey levels")
     ap.add_argument("--min-fraction", type=float, default=0.7)
+    ap.add_argument("--per-frame", help="write frame,id,status,ridge_fraction,on_ridge to this CSV")
     ap.add_argument("--require", type=float, default=0.0,
                     help="exit 1 when the on-ridge fraction of tracked whisker-frames is below this")
     ap.add_argument("--require-all", type=float, default=0.0,
@@ -102,6 +103,7 @@ def main():
     checked = on_ridge = on_pole = 0
     controls = control_pass = 0
     per_whisker = {}
+    rows = []
     while True:
         ok, frame = cap.read()
         if not ok:
@@ -136,10 +138,14 @@ def main():
             ridge = fraction >= args.min_fraction
             on_ridge += ridge
             on_pole += pole
+            rows.append(f"{index},{w['id']},{w['status']},{fraction:.3f},{int(ridge)}")
             stats = per_whisker.setdefault(w["id"], [0, 0])
             stats[0] += 1
             stats[1] += ridge
     total = sum(len(v) for v in frames.values())
+    if args.per_frame:
+        with open(args.per_frame, "w") as f:
+            f.write("frame,id,status,ridge_fraction,on_ridge\n" + "\n".join(rows) + "\n")
     fraction = on_ridge / checked if checked else 0.0
     print(f"whisker-frames: {total}, tracked (ok or not_converged) {checked}")
     print(f"on a dark ridge (>= {args.min_fraction:.0%} of the curve >= {args.min_depth} grey "
