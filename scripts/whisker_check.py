@@ -78,6 +78,8 @@ def main():
     ap.add_argument("--results", required=True, help="sinew-track --whiskers JSON Lines")
     ap.add_argument("--min-depth", type=float, default=1.0, help="grey levels")
     ap.add_argument("--min-fraction", type=float, default=0.7)
+    ap.add_argument("--jump-px", type=float, default=8.0,
+                    help="a follicle moving more than this between frames is counted as a jump")
     ap.add_argument("--per-frame", help="write frame,id,status,ridge_fraction,on_ridge to this CSV")
     ap.add_argument("--require", type=float, default=0.0,
                     help="exit 1 when the on-ridge fraction of tracked whisker-frames is below this")
@@ -156,6 +158,19 @@ def main():
     print(f"on a pole or other thick dark object: {on_pole}")
     print("per whisker (id: tracked, on ridge): " +
           ", ".join(f"{k}: {v[0]}, {v[1]}" for k, v in sorted(per_whisker.items())))
+    # Identity: a whisker's follicle moves with the face, a few pixels per frame; one that jumps
+    # further, or ends far from where it started, has most likely been taken over by another
+    # whisker (the ridge measure above cannot tell).
+    jumps, drift = {}, {}
+    for wid in sorted(per_whisker):
+        track = [(i, np.asarray(w["follicle"], dtype=float)) for i in sorted(frames)
+                 for w in frames[i] if w["id"] == wid and w["status"] != "lost"]
+        jumps[wid] = sum(np.linalg.norm(b - a) > args.jump_px
+                         for (_, a), (_, b) in zip(track[:-1], track[1:]))
+        drift[wid] = float(np.median([np.linalg.norm(p - track[0][1]) for _, p in track]))
+    print(f"follicle jumps > {args.jump_px:g} px between tracked frames (id: jumps, median "
+          "distance from its first follicle): " +
+          ", ".join(f"{k}: {jumps[k]}, {drift[k]:.1f} px" for k in sorted(jumps)))
     if fraction < args.require or on_ridge / max(total, 1) < args.require_all or on_pole > 0:
         sys.exit(1)
 
