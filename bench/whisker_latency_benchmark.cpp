@@ -72,6 +72,7 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
   std::vector<double> micros;
   double detect_ms = 0.0, error_sum = 0.0;
   long ok = 0, whisker_frames = 0, found = 0;
+  long repetitions = 0, iterations = 0, searches = 0;
   for (auto _ : state) {
     const auto d0 = std::chrono::steady_clock::now();
     rt::WhiskerDetectionOptions detect_options;
@@ -95,6 +96,9 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
       micros.push_back(seconds * 1e6);
       for (int w = 0; w < tracker.num_whiskers(); ++w) {
         ++whisker_frames;
+        repetitions += tracker.result(w).summary.repetitions;
+        iterations += tracker.result(w).summary.iterations;
+        searches += tracker.result(w).summary.searches;
         if (tracker.result(w).status != rt::FrameStatus::kOk) continue;
         ++ok;
         const auto truth = seq.truth[f][w].points();
@@ -111,6 +115,10 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
   state.counters["p99_us"] = micros[std::min(micros.size() - 1, micros.size() * 99 / 100)];
   state.counters["ok_fraction"] = double(ok) / double(std::max(whisker_frames, 1L));
   state.counters["node_dist_px"] = error_sum / double(std::max(ok, 1L));
+  const double per = 1.0 / double(std::max(whisker_frames, 1L));
+  state.counters["repetitions"] = per * double(repetitions);
+  state.counters["newton_its"] = per * double(iterations);
+  state.counters["searches"] = per * double(searches);
   state.counters["detect_ms"] = detect_ms;
   state.counters["detected"] = static_cast<double>(found);
 }
