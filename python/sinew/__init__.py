@@ -1,0 +1,24 @@
+"""Sinew: physics-based deformation from images.
+
+``sinew.Tracker(init)`` tracks a beam-like object (a whisker, an antenna, a needle) through grey
+frames and recovers the forces that bend it; ``sinew.track_video(tracker, path)`` runs it over a
+video file frame by frame. See the README's Python section.
+"""
+from ._sinew import Tracker  # noqa: F401
+
+
+def track_video(tracker, path):
+    """Yields tracker.track(frame) for every frame of a video or image sequence (OpenCV reads it:
+    a file, or a printf pattern such as ``frames/f_%04d.png``), converted to grey."""
+    import cv2
+
+    capture = cv2.VideoCapture(path)
+    if not capture.isOpened():
+        raise ValueError(f"{path}: cannot open")
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            return
+        if frame.ndim == 3:
+            frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        yield tracker.track(frame)
