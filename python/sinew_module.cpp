@@ -11,6 +11,7 @@
 #include <string>
 
 #include "rt/tracker.hpp"
+#include "rt/whisker/session.hpp"
 #include "tools/track/track_init.hpp"
 
 namespace py = pybind11;
@@ -94,6 +95,150 @@ class PyTracker {
   long frames_ = 0;
 };
 
+rt::FaceSide face_side(const std::string& face) {
+  if (face == "auto") return rt::FaceSide::kAuto;
+  if (face == "left") return rt::FaceSide::kLeft;
+  if (face == "right") return rt::FaceSide::kRight;
+  if (face == "top") return rt::FaceSide::kTop;
+  if (face == "bottom") return rt::FaceSide::kBottom;
+  throw py::value_error("face = \"" + face + "\" must be auto, left, right, top or bottom");
+}
+
+rt::Redetect redetect_mode(const std::string& redetect) {
+  if (redetect == "every") return rt::Redetect::kEvery;
+  if (redetect == "lost") return rt::Redetect::kLost;
+  if (redetect == "never") return rt::Redetect::kNever;
+  throw py::value_error("redetect = \"" + redetect + "\" must be every, lost or never");
+}
+
+py::array_t<double> points_array(const std::vector<Eigen::Vector2d>& points) {
+  py::array_t<double> a({static_cast<py::ssize_t>(points.size()), py::ssize_t{2}});
+  auto v = a.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    v(i, 0) = points[i].x();
+    v(i, 1) = points[i].y();
+  }
+  return a;
+}
+
+py::tuple xy(const Eigen::Vector2d& p) {
+  return py::make_tuple(p.x(), p.y());
+}
+
+// sinew-track --whiskers as a Python object (rt::WhiskerSession): the same results, frame by frame.
+class PyWhiskers {
+ public:
+  PyWhiskers(const std::string& face, const std::string& redetect, double min_length_px,
+             double mm_per_px, double young_modulus_gpa, double base_radius_um,
+             double tip_radius_um, double length_mm, double axis_angle_deg,
+             std::pair<double, double> curvature_window, int moment_elements) {
+    rt::WhiskerSessionOptions o;
+    o.detection.face = face_side(face);
+    o.detection.min_length_px = min_length_px;
+    o.redetect = redetect_mode(redetect);
+    o.readout.physics.mm_per_px = mm_per_px;
+    o.readout.physics.young_modulus_gpa = young_modulus_gpa;
+    o.readout.physics.base_radius_um = base_radius_um;
+    o.readout.physics.tip_radius_um = tip_radius_um;
+    o.readout.physics.length_mm = length_mm;
+    o.readout.axis_angle_deg = axis_angle_deg;
+    o.readout.curvature_from_px = curvature_window.first;
+    o.readout.curvature_to_px = curvature_window.second;
+    o.readout.moment_elements = moment_elements;
+    if (auto err = o.validate()) throw py::value_error(*err);
+    si_ = o.readout.physics.si();
+    session_ = std::make_unique<rt::WhiskerSession>(o);
+  }
+
+  py::dict track(const py::array_t<std::uint8_t, py::array::c_style>& frame) {
+    if (frame.ndim() != 2) {
+      throw py::value_error("Whiskers.track: a grey frame, a 2-D uint8 array (got " +
+                            std::to_string(frame.ndim()) + " dimensions)");
+    }
+    const rt::ImageView view{frame.data(), static_cast<int>(frame.shape(1)),
+                             static_cast<int>(frame.shape(0)),
+                             static_cast<std::ptrdiff_t>(frame.strides(0))};
+    std::string error;
+    {
+      py::gil_scoped_release release;
+      error = session_->process(view);
+    }
+    if (!error.empty()) throw py::value_error("frame " + std::to_string(frames_) + ": " + error);
+    const rt::WhiskerTracker& tracker = session_->tracker();
+    py::list whiskers;
+    for (int w = 0; w < tracker.num_whiskers(); ++w) {
+      const rt::Tracker& t = tracker.whisker(w);
+      const rt::WhiskerFrame& r = tracker.result(w);
+      py::array_t<double> nodes({t.num_nodes(), 3});
+      auto nv = nodes.mutable_unchecked<2>();
+      for (int i = 0; i < t.num_nodes(); ++i) {
+        const Eigen::Vector2d x = t.node_position(i);
+        nv(i, 0) = x.x();
+        nv(i, 1) = x.y();
+        nv(i, 2) = t.state()[3 * i + 2];
+      }
+      py::dict d;
+      d["id"] = w;
+      d["status"] = rt::to_string(r.status);
+      d["nodes"] = nodes;
+      d["follicle"] = xy(r.follicle);
+      d["tip"] = xy(r.tip);
+      d["length_px"] = r.length_px;
+      d["on_neighbour"] = r.on_neighbour;
+      d["jumped"] = r.jumped;
+      d["reacquired"] = r.reacquired;
+      d["inlier_fraction"] = r.summary.inlier_fraction;
+      const rt::WhiskerSessionWhisker& sw = session_->whisker(w);
+      if (sw.readout) {
+        d["base_angle_deg"] = sw.readout->base_angle_deg;
+        d[si_ ? "curvature_per_mm" : "curvature_per_px"] = sw.readout->curvature;
+        d[si_ ? "delta_curvature_per_mm" : "delta_curvature_per_px"] = sw.readout->delta_curvature;
+        d[si_ ? "m0_N_m" : "m0_model"] = sw.readout->moment;
+      }
+      if (sw.contact) {
+        d["contact"] = sw.contact->touching;
+        if (sw.contact->touching) {
+          d["contact_arc_length_px"] = sw.contact->arc_length_px;
+          d["contact_point"] = xy(sw.contact->point);
+        }
+      }
+      whiskers.append(d);
+    }
+    py::dict out;
+    out["frame"] = frames_++;
+    out["latency_us"] = session_->tracking_seconds() * 1e6;
+    out["whiskers"] = whiskers;
+    if (session_->redetected()) {
+      const rt::WhiskerAssociation& a = session_->association();
+      out["redetect"] =
+          py::dict(py::arg("ms") = session_->redetect_seconds() * 1e3,
+                   py::arg("detected") = a.detected, py::arg("matched") = a.matched,
+                   py::arg("restarted") = a.restarted, py::arg("shift") = xy(a.shift));
+    }
+    return out;
+  }
+
+  py::object detection() const {
+    if (!session_->started()) return py::none();
+    const rt::WhiskerDetection& d = session_->first_detection();
+    py::list whiskers;
+    for (const auto& w : d.whiskers) {
+      whiskers.append(py::dict(
+          py::arg("points") = points_array(w.points), py::arg("follicle") = xy(w.follicle),
+          py::arg("length_px") = w.length_px, py::arg("contrast_percent") = w.contrast_percent));
+    }
+    return py::dict(py::arg("face") = rt::to_string(d.face), py::arg("backlight") = d.backlight,
+                    py::arg("noise_percent") = d.noise_percent,
+                    py::arg("seconds") = session_->first_detection_seconds(),
+                    py::arg("whiskers") = whiskers);
+  }
+
+ private:
+  std::unique_ptr<rt::WhiskerSession> session_;
+  bool si_ = false;
+  long frames_ = 0;
+};
+
 }  // namespace
 
 PYBIND11_MODULE(_sinew, m) {
@@ -113,4 +258,32 @@ forces (n x 3: fx, fy, m; the fitted loads when the init names load_nodes), rms_
 iterations, repetitions, inlier_fraction, object_fraction, latency_us (the C++ tracking time).
 )doc")
       .def_property_readonly("num_nodes", &PyTracker::num_nodes);
+
+  py::class_<PyWhiskers>(m, "Whiskers", R"doc(
+Every whisker of a video, found on the first frame with no initialisation and tracked with stable
+identities, their mechanics and their contacts: sinew-track --whiskers, frame by frame.
+
+Whiskers(face='auto', redetect='every', min_length_px=40, mm_per_px=0, young_modulus_gpa=3.34,
+base_radius_um=0, tip_radius_um=0, length_mm=0, axis_angle_deg=0, curvature_window=(0, 30),
+moment_elements=3): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
+the radii, curvature and moment are in pixel model units.
+)doc")
+      .def(py::init<const std::string&, const std::string&, double, double, double, double, double,
+                    double, double, std::pair<double, double>, int>(),
+           py::arg("face") = "auto", py::arg("redetect") = "every", py::arg("min_length_px") = 40.0,
+           py::arg("mm_per_px") = 0.0, py::arg("young_modulus_gpa") = 3.34,
+           py::arg("base_radius_um") = 0.0, py::arg("tip_radius_um") = 0.0,
+           py::arg("length_mm") = 0.0, py::arg("axis_angle_deg") = 0.0,
+           py::arg("curvature_window") = std::pair<double, double>(0.0, 30.0),
+           py::arg("moment_elements") = 3)
+      .def("track", &PyWhiskers::track, py::arg("frame"), R"doc(
+Processes one grey frame (2-D uint8 numpy array, read in place): detection on the first, then
+tracking, detection again and association (redetect), read-out and contact. Returns a dict with
+the keys of sinew-track --whiskers' JSON lines: frame, latency_us (tracking only), whiskers (a list
+of dicts: id, status, nodes (n x 3), follicle, tip, length_px, inlier_fraction, and for whiskers
+tracked ok base_angle_deg, curvature, delta_curvature, m0 and contact), redetect.
+)doc")
+      .def_property_readonly("detection", &PyWhiskers::detection,
+                             "The first frame's detection (None before it): face, backlight, "
+                             "whiskers with their traces (points, n x 2).");
 }

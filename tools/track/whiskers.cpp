@@ -18,6 +18,7 @@
 
 #include "rt/whisker/contact.hpp"
 #include "rt/whisker/detection.hpp"
+#include "rt/whisker/session.hpp"
 #include "rt/whisker/whisker_tracker.hpp"
 #include "tools/io/json_file.hpp"
 #include "tools/track/frame_source.hpp"
@@ -85,9 +86,20 @@ nlohmann::json point(const Eigen::Vector2d& p) {
 }  // namespace
 
 int run_whiskers(const WhiskerTrackArgs& args) {
-  rt::WhiskerDetectionOptions detect_options;
-  detect_options.face = parse_face(args.face);
-  detect_options.min_length_px = args.min_length_px;
+  rt::WhiskerSessionOptions session_options;
+  session_options.detection.face = parse_face(args.face);
+  session_options.detection.min_length_px = args.min_length_px;
+  session_options.readout = args.readout;
+  if (args.redetect == "every") {
+    session_options.redetect = rt::Redetect::kEvery;
+  } else if (args.redetect == "lost") {
+    session_options.redetect = rt::Redetect::kLost;
+  } else if (args.redetect == "never") {
+    session_options.redetect = rt::Redetect::kNever;
+  } else {
+    throw InputError("--redetect " + args.redetect + ": must be every, lost or never");
+  }
+  rt::WhiskerSession session(session_options);
   FrameSource source(args.input, args.first, args.stride, args.count);
 
   std::ofstream out(args.out + ".tmp");
@@ -115,11 +127,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   }
   std::unique_ptr<WhiskerHdf5Writer> hdf5;
 
-  std::optional<rt::WhiskerTracker> tracker;
-  std::vector<rt::WhiskerReadoutModel> readouts;
   std::vector<WhiskerSeries> series;
   std::vector<std::vector<double>> centrelines;
-  std::vector<float> object_distance;
   std::vector<rt::WhiskerContact> contacts;
   std::vector<double> latencies, redetect_times;
   std::map<std::string, int> statuses;
@@ -129,17 +138,17 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   while (source.next(grey, index)) {
     const rt::ImageView view{grey.ptr<std::uint8_t>(), grey.cols, grey.rows,
                              static_cast<std::ptrdiff_t>(grey.step[0])};
-    if (!tracker) {
-      const auto t0 = std::chrono::steady_clock::now();
-      const rt::WhiskerDetection found = rt::detect_whiskers(view, detect_options);
-      detect_ms =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
-      if (!found.error.empty())
-        throw InputError(args.input + ": frame " + std::to_string(index) + ": " + found.error);
-      std::vector<std::vector<Eigen::Vector2d>> traces;
+    const bool first = !session.started();
+    const std::string error = session.process(view);
+    if (!error.empty()) {
+      throw InputError(args.input + ": frame " + std::to_string(index) + ": " + error);
+    }
+    const rt::WhiskerTracker& tracker = session.tracker();
+    if (first) {
+      const rt::WhiskerDetection& found = session.first_detection();
+      detect_ms = session.first_detection_seconds() * 1e3;
       nlohmann::json record = nlohmann::json::array();
       for (std::size_t w = 0; w < found.whiskers.size(); ++w) {
-        traces.push_back(found.whiskers[w].points);
         record.push_back({{"id", w},
                           {"follicle", point(found.whiskers[w].follicle)},
                           {"length_px", found.whiskers[w].length_px},
@@ -172,23 +181,14 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                   << found.noise_percent << " %, seed " << found.seed_contrast << " %, follow "
                   << found.follow_contrast << " %; " << detect_ms << " ms)\n";
       }
-      rt::WhiskerTrackerOptions track_options;
-      // No ridge is looked for where detection saw the face or another dark object.
-      track_options.tracker.ridge_min_background = detect_options.dark_fraction * found.backlight;
-      tracker.emplace(traces, track_options);
-      if (!tracker->valid()) throw InputError(args.input + ": " + tracker->error());
-      for (int w = 0; w < tracker->num_whiskers(); ++w) {
-        readouts.emplace_back(tracker->whisker(w).model(), args.readout);
-        if (!readouts.back().valid()) {
-          throw InputError("whisker " + std::to_string(w) + ": " + readouts.back().error());
-        }
+      for (int w = 0; w < tracker.num_whiskers(); ++w) {
         series.emplace_back();
         series.back().id = w;
       }
       if (!args.hdf5.empty()) {
         std::vector<int> nodes;
-        for (int w = 0; w < tracker->num_whiskers(); ++w)
-          nodes.push_back(tracker->whisker(w).num_nodes());
+        for (int w = 0; w < tracker.num_whiskers(); ++w)
+          nodes.push_back(tracker.whisker(w).num_nodes());
         hdf5 = std::make_unique<WhiskerHdf5Writer>(args.hdf5, value_columns, nodes);
         centrelines.resize(nodes.size());
         hdf5->attribute("source", args.input);
@@ -204,32 +204,12 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                            .dump());
       }
     }
-    const double seconds = tracker->track(view);
+    const double seconds = session.tracking_seconds();
     latencies.push_back(seconds * 1e6);
-    // The first frame's fits are the whiskers at rest (Δκ and M0 are changes from them).
-    if (processed == 0) {
-      for (int w = 0; w < tracker->num_whiskers(); ++w)
-        readouts[w].set_rest(tracker->whisker(w).state());
-    }
-    // Detection again, outside the real-time path: the whiskers are matched to it in their order
-    // along the face, and lost or misplaced ones restart on theirs.
-    double redetect_ms = 0.0;
-    bool have_objects = false;  // this frame's distance to objects is known (detection ran)
-    rt::WhiskerAssociation association;
-    const bool redetect =
-        args.redetect == "every" || (args.redetect == "lost" && tracker->any_lost());
-    if (redetect) {
-      const auto t0 = std::chrono::steady_clock::now();
-      rt::WhiskerDetection again = rt::detect_whiskers(view, detect_options);
-      std::vector<std::vector<Eigen::Vector2d>> traces;
-      for (const auto& w : again.whiskers) traces.push_back(w.points);
-      if (again.error.empty()) association = tracker->associate(view, traces);
-      object_distance = std::move(again.object_distance);
-      have_objects = again.error.empty();
-      redetect_ms =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3;
-      redetect_times.push_back(redetect_ms);
-    }
+    const bool redetect = session.redetected();
+    const rt::WhiskerAssociation& association = session.association();
+    if (redetect) redetect_times.push_back(session.redetect_seconds() * 1e3);
+    const double redetect_ms = session.redetect_seconds() * 1e3;
     nlohmann::json line;
     line["frame"] = index;
     line["latency_us"] = seconds * 1e6;
@@ -241,10 +221,10 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                           {"shift", point(association.shift)}};
     }
     nlohmann::json whiskers = nlohmann::json::array();
-    contacts.assign(static_cast<std::size_t>(tracker->num_whiskers()), rt::WhiskerContact{});
-    for (int w = 0; w < tracker->num_whiskers(); ++w) {
-      const rt::Tracker& t = tracker->whisker(w);
-      const rt::WhiskerFrame& r = tracker->result(w);
+    contacts.assign(static_cast<std::size_t>(tracker.num_whiskers()), rt::WhiskerContact{});
+    for (int w = 0; w < tracker.num_whiskers(); ++w) {
+      const rt::Tracker& t = tracker.whisker(w);
+      const rt::WhiskerFrame& r = tracker.result(w);
       nlohmann::json nodes = nlohmann::json::array();
       for (int i = 0; i < t.num_nodes(); ++i) {
         const Eigen::Vector2d x = t.node_position(i);
@@ -273,8 +253,9 @@ int run_whiskers(const WhiskerTrackArgs& args) {
       // Nor of a whisker placed on its detection without a fit (not converged): its node
       // rotations are the detection's chords', not an equilibrium's.
       std::vector<double> values(value_columns.size(), nan);
-      if (r.status == rt::FrameStatus::kOk) {
-        const rt::WhiskerReadout q = readouts[w].evaluate(t.state());
+      const rt::WhiskerSessionWhisker& sw = session.whisker(w);
+      if (sw.readout) {
+        const rt::WhiskerReadout& q = *sw.readout;
         ts.base_angle_deg.back() = q.base_angle_deg;
         ts.delta_curvature.back() = q.delta_curvature;
         ts.moment.back() = q.moment;
@@ -286,11 +267,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
             r.follicle.x(), r.follicle.y(),    r.tip.x(), r.tip.y(), r.length_px, q.base_angle_deg,
             q.curvature,    q.delta_curvature, q.moment,  nan,       nan};
         // Contact with a pole or another object the detection of this frame saw.
-        if (have_objects) {
-          const rt::WhiskerContact c =
-              object_distance.empty()
-                  ? rt::WhiskerContact{}
-                  : rt::find_contact(t, object_distance.data(), grey.cols, grey.rows);
+        if (sw.contact) {
+          const rt::WhiskerContact& c = *sw.contact;
           contacts[w] = c;
           record["contact"] = c.touching;
           if (std::isfinite(c.distance_px)) record["object_distance_px"] = c.distance_px;
@@ -331,7 +309,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
 
     if (overlay.enabled()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
-      draw_whiskers(colour, *tracker, contacts, index);
+      draw_whiskers(colour, session.tracker(), contacts, index);
       overlay.write(colour, index);
     }
     ++processed;
@@ -363,7 +341,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     }
   }
   if (!args.quiet) {
-    std::cout << "sinew-track: " << processed << " frames, " << tracker->num_whiskers()
+    std::cout << "sinew-track: " << processed << " frames, " << session.tracker().num_whiskers()
               << " whiskers from " << source.description() << "\n  whisker-frames:";
     for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
     std::cout << "\n  latency per frame (all whiskers): median " << percentile(latencies, 0.5)

@@ -1,0 +1,86 @@
+#pragma once
+/// The whole per-frame job of a whisker video, as sinew-track --whiskers and the Python module run
+/// it: on the first frame, find the whiskers (detect_whiskers) and set up one tracker for them all;
+/// on every frame, track them (WhiskerTracker::track, the real-time part), detect again and
+/// associate when asked (a 25–100 fps camera, or lost whiskers), and read out the mechanics
+/// (WhiskerReadoutModel, the first frame's fits being the whiskers at rest) and the contact with
+/// the objects the detection saw. Set-up and detection allocate; the tracking does not.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rt/whisker/contact.hpp"
+#include "rt/whisker/detection.hpp"
+#include "rt/whisker/readout.hpp"
+#include "rt/whisker/whisker_tracker.hpp"
+
+namespace sinew::rt {
+
+/// When detection runs again after tracking: on every frame, only on frames with a lost whisker,
+/// or never.
+enum class Redetect { kEvery, kLost, kNever };
+const char* to_string(Redetect redetect);
+
+struct WhiskerSessionOptions {
+  WhiskerDetectionOptions detection;
+  /// The trackers' options; ridge_min_background is set from the first detection's backlight
+  /// (no ridge is looked for where detection saw the face or another dark object).
+  WhiskerTrackerOptions tracker;
+  WhiskerReadoutOptions readout;
+  Redetect redetect = Redetect::kEvery;
+
+  std::optional<std::string> validate() const;
+};
+
+/// One whisker on the frame just processed, beside WhiskerTracker::result.
+struct WhiskerSessionWhisker {
+  /// The read-out, for a whisker tracked ok (a lost whisker's state would be stale, and one
+  /// placed on its detection without a fit has the detection's chords for rotations).
+  std::optional<WhiskerReadout> readout;
+  /// Contact with an object the detection of this frame saw, for a whisker tracked ok on a frame
+  /// detection ran on.
+  std::optional<WhiskerContact> contact;
+};
+
+class WhiskerSession {
+ public:
+  explicit WhiskerSession(WhiskerSessionOptions options);
+
+  /// Processes the next frame. Returns an empty string, or the error (bad options, no face on the
+  /// first frame, a whisker the tracker cannot set up); after an error the session stays unset.
+  std::string process(const ImageView& frame);
+
+  bool started() const { return tracker_.has_value(); }
+  int frames() const { return frames_; }
+  /// The first frame's detection, and how long it took.
+  const WhiskerDetection& first_detection() const { return first_; }
+  double first_detection_seconds() const { return first_seconds_; }
+  /// Valid once started().
+  const WhiskerTracker& tracker() const { return *tracker_; }
+  const WhiskerReadoutModel& readout_model(int w) const { return readouts_[w]; }
+
+  /// The frame just processed.
+  double tracking_seconds() const { return tracking_seconds_; }
+  bool redetected() const { return redetected_; }
+  double redetect_seconds() const { return redetect_seconds_; }
+  const WhiskerAssociation& association() const { return association_; }
+  const WhiskerSessionWhisker& whisker(int w) const { return whiskers_[w]; }
+  /// Distance to the objects of the last detection (see WhiskerDetection::object_distance).
+  const std::vector<float>& object_distance() const { return object_distance_; }
+
+ private:
+  WhiskerSessionOptions options_;
+  WhiskerDetection first_;
+  double first_seconds_ = 0.0;
+  std::optional<WhiskerTracker> tracker_;
+  std::vector<WhiskerReadoutModel> readouts_;
+  std::vector<WhiskerSessionWhisker> whiskers_;
+  std::vector<float> object_distance_;
+  WhiskerAssociation association_;
+  int frames_ = 0;
+  double tracking_seconds_ = 0.0, redetect_seconds_ = 0.0;
+  bool redetected_ = false;
+};
+
+}  // namespace sinew::rt

@@ -1,0 +1,64 @@
+"""sinew.Whiskers against sinew-track --whiskers on a rendered whisker pad (sinew-synth): the same
+whiskers, statuses, nodes, read-out and contacts, frame by frame, to 1e-9.
+
+Run by ctest (python_module) with PYTHONPATH=<build>/python and SINEW_BINARY_DIR=<build>.
+"""
+import json
+import os
+import subprocess
+
+import cv2
+import numpy as np
+import pytest
+
+import sinew
+
+BIN = os.path.join(os.environ.get("SINEW_BINARY_DIR", "build/release"), "tools")
+FRAMES = 24
+
+
+@pytest.fixture(scope="module")
+def pad(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pad")
+    subprocess.run([os.path.join(BIN, "sinew-synth"), "--scenario", "whisker-pad", "--frames",
+                    str(FRAMES), "--out", str(out)], check=True, capture_output=True)
+    results = out / "results.jsonl"
+    subprocess.run([os.path.join(BIN, "sinew-track"), "--input", str(out / "frames/f_%04d.png"),
+                    "--whiskers", "--face", "left", "--out", str(results), "--quiet"],
+                   check=True, capture_output=True)
+    lines = [json.loads(line) for line in open(results)]
+    frames = [cv2.imread(str(out / f"frames/f_{k:04d}.png"), cv2.IMREAD_GRAYSCALE)
+              for k in range(FRAMES)]
+    return lines[0]["detection"], [line for line in lines if "whiskers" in line], frames
+
+
+def test_same_whiskers_as_sinew_track(pad):
+    detection, expected, frames = pad
+    whiskers = sinew.Whiskers(face="left")
+    assert whiskers.detection is None
+    compared = 0
+    for frame, want in zip(frames, expected):
+        got = whiskers.track(frame)
+        assert len(got["whiskers"]) == len(want["whiskers"])
+        for g, w in zip(got["whiskers"], want["whiskers"]):
+            assert g["id"] == w["id"] and g["status"] == w["status"]
+            np.testing.assert_allclose(g["nodes"], np.asarray(w["nodes"]), rtol=0, atol=1e-9)
+            for key in ("base_angle_deg", "curvature_per_px", "delta_curvature_per_px",
+                        "m0_model", "contact", "contact_arc_length_px"):
+                assert (key in g) == (key in w), key
+                if key in w:
+                    assert g[key] == pytest.approx(w[key], rel=1e-9, abs=1e-12), key
+                    compared += 1
+    assert compared > 0
+    found = whiskers.detection
+    assert len(found["whiskers"]) == len(detection["whiskers"]) >= 8
+    for g, w in zip(found["whiskers"], detection["whiskers"]):
+        np.testing.assert_allclose(g["follicle"], w["follicle"], rtol=0, atol=1e-9)
+        assert g["points"].shape[1] == 2
+
+
+def test_bad_options_raise():
+    with pytest.raises(ValueError, match="face"):
+        sinew.Whiskers(face="sideways")
+    with pytest.raises(ValueError, match="base_radius_um"):
+        sinew.Whiskers(mm_per_px=0.05)
