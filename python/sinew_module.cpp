@@ -19,6 +19,42 @@ using namespace sinew;
 
 namespace {
 
+rt::FaceSide face_side(const std::string& face) {
+  if (auto side = rt::face_side_from_string(face)) return *side;
+  throw py::value_error("face = \"" + face + "\" must be auto, left, right, top or bottom");
+}
+
+rt::Redetect redetect_mode(const std::string& redetect) {
+  if (auto mode = rt::redetect_from_string(redetect)) return *mode;
+  throw py::value_error("redetect = \"" + redetect + "\" must be every, lost or never");
+}
+
+// A grey frame read in place: a C-contiguous 2-D uint8 array.
+rt::ImageView grey_view(const py::array_t<std::uint8_t, py::array::c_style>& frame,
+                        const char* caller) {
+  if (frame.ndim() != 2) {
+    throw py::value_error(std::string(caller) + ": a grey frame, a 2-D uint8 array (got " +
+                          std::to_string(frame.ndim()) + " dimensions)");
+  }
+  return rt::ImageView{frame.data(), static_cast<int>(frame.shape(1)),
+                       static_cast<int>(frame.shape(0)),
+                       static_cast<std::ptrdiff_t>(frame.strides(0))};
+}
+
+py::array_t<double> points_array(const std::vector<Eigen::Vector2d>& points) {
+  py::array_t<double> a({static_cast<py::ssize_t>(points.size()), py::ssize_t{2}});
+  auto v = a.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    v(i, 0) = points[i].x();
+    v(i, 1) = points[i].y();
+  }
+  return a;
+}
+
+py::tuple xy(const Eigen::Vector2d& p) {
+  return py::make_tuple(p.x(), p.y());
+}
+
 class PyTracker {
  public:
   explicit PyTracker(const py::object& init) {
@@ -45,13 +81,7 @@ class PyTracker {
   }
 
   py::dict track(const py::array_t<std::uint8_t, py::array::c_style>& frame) {
-    if (frame.ndim() != 2) {
-      throw py::value_error("Tracker.track: a grey frame, a 2-D uint8 array (got " +
-                            std::to_string(frame.ndim()) + " dimensions)");
-    }
-    const rt::ImageView view{frame.data(), static_cast<int>(frame.shape(1)),
-                             static_cast<int>(frame.shape(0)),
-                             static_cast<std::ptrdiff_t>(frame.strides(0))};
+    const rt::ImageView view = grey_view(frame, "Tracker.track");
     rt::FrameSummary s;
     {
       py::gil_scoped_release release;
@@ -95,36 +125,6 @@ class PyTracker {
   long frames_ = 0;
 };
 
-rt::FaceSide face_side(const std::string& face) {
-  if (face == "auto") return rt::FaceSide::kAuto;
-  if (face == "left") return rt::FaceSide::kLeft;
-  if (face == "right") return rt::FaceSide::kRight;
-  if (face == "top") return rt::FaceSide::kTop;
-  if (face == "bottom") return rt::FaceSide::kBottom;
-  throw py::value_error("face = \"" + face + "\" must be auto, left, right, top or bottom");
-}
-
-rt::Redetect redetect_mode(const std::string& redetect) {
-  if (redetect == "every") return rt::Redetect::kEvery;
-  if (redetect == "lost") return rt::Redetect::kLost;
-  if (redetect == "never") return rt::Redetect::kNever;
-  throw py::value_error("redetect = \"" + redetect + "\" must be every, lost or never");
-}
-
-py::array_t<double> points_array(const std::vector<Eigen::Vector2d>& points) {
-  py::array_t<double> a({static_cast<py::ssize_t>(points.size()), py::ssize_t{2}});
-  auto v = a.mutable_unchecked<2>();
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    v(i, 0) = points[i].x();
-    v(i, 1) = points[i].y();
-  }
-  return a;
-}
-
-py::tuple xy(const Eigen::Vector2d& p) {
-  return py::make_tuple(p.x(), p.y());
-}
-
 // sinew-track --whiskers as a Python object (rt::WhiskerSession): the same results, frame by frame.
 class PyWhiskers {
  public:
@@ -151,13 +151,7 @@ class PyWhiskers {
   }
 
   py::dict track(const py::array_t<std::uint8_t, py::array::c_style>& frame) {
-    if (frame.ndim() != 2) {
-      throw py::value_error("Whiskers.track: a grey frame, a 2-D uint8 array (got " +
-                            std::to_string(frame.ndim()) + " dimensions)");
-    }
-    const rt::ImageView view{frame.data(), static_cast<int>(frame.shape(1)),
-                             static_cast<int>(frame.shape(0)),
-                             static_cast<std::ptrdiff_t>(frame.strides(0))};
+    const rt::ImageView view = grey_view(frame, "Whiskers.track");
     std::string error;
     {
       py::gil_scoped_release release;

@@ -436,6 +436,14 @@ const char* to_string(FaceSide side) {
   return "unknown";
 }
 
+std::optional<FaceSide> face_side_from_string(const std::string& name) {
+  for (FaceSide f :
+       {FaceSide::kAuto, FaceSide::kLeft, FaceSide::kRight, FaceSide::kTop, FaceSide::kBottom}) {
+    if (name == to_string(f)) return f;
+  }
+  return std::nullopt;
+}
+
 std::optional<std::string> WhiskerDetectionOptions::validate() const {
   if (!(smoothing_px > 0.0)) return field_error("smoothing_px", smoothing_px, "must be > 0");
   if (!(orientation_scale_px > 0.0)) {

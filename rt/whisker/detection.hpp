@@ -26,6 +26,8 @@ namespace sinew::rt {
 /// The image border the face touches; kAuto takes the border with most dark pixels.
 enum class FaceSide { kAuto, kLeft, kRight, kTop, kBottom };
 const char* to_string(FaceSide side);
+/// "auto", "left", "right", "top" or "bottom"; nullopt for anything else.
+std::optional<FaceSide> face_side_from_string(const std::string& name);
 
 struct WhiskerDetectionOptions {
   FaceSide face = FaceSide::kAuto;

@@ -2,15 +2,11 @@
 
 #include <chrono>
 
+#include "common/timing.hpp"
+
 namespace sinew::rt {
 
-namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
+using common::seconds_since;
 
 const char* to_string(Redetect redetect) {
   switch (redetect) {
@@ -22,6 +18,13 @@ const char* to_string(Redetect redetect) {
       return "never";
   }
   return "?";
+}
+
+std::optional<Redetect> redetect_from_string(const std::string& name) {
+  for (Redetect r : {Redetect::kEvery, Redetect::kLost, Redetect::kNever}) {
+    if (name == to_string(r)) return r;
+  }
+  return std::nullopt;
 }
 
 std::optional<std::string> WhiskerSessionOptions::validate() const {

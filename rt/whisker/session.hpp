@@ -21,6 +21,8 @@ namespace sinew::rt {
 /// or never.
 enum class Redetect { kEvery, kLost, kNever };
 const char* to_string(Redetect redetect);
+/// "every", "lost" or "never"; nullopt for anything else.
+std::optional<Redetect> redetect_from_string(const std::string& name);
 
 struct WhiskerSessionOptions {
   WhiskerDetectionOptions detection;

@@ -31,11 +31,7 @@ namespace sinew::tools {
 namespace {
 
 rt::FaceSide parse_face(const std::string& face) {
-  if (face == "auto") return rt::FaceSide::kAuto;
-  if (face == "left") return rt::FaceSide::kLeft;
-  if (face == "right") return rt::FaceSide::kRight;
-  if (face == "top") return rt::FaceSide::kTop;
-  if (face == "bottom") return rt::FaceSide::kBottom;
+  if (auto side = rt::face_side_from_string(face)) return *side;
   throw InputError("--face = \"" + face + "\" must be auto, left, right, top or bottom");
 }
 
@@ -90,12 +86,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   session_options.detection.face = parse_face(args.face);
   session_options.detection.min_length_px = args.min_length_px;
   session_options.readout = args.readout;
-  if (args.redetect == "every") {
-    session_options.redetect = rt::Redetect::kEvery;
-  } else if (args.redetect == "lost") {
-    session_options.redetect = rt::Redetect::kLost;
-  } else if (args.redetect == "never") {
-    session_options.redetect = rt::Redetect::kNever;
+  if (auto mode = rt::redetect_from_string(args.redetect)) {
+    session_options.redetect = *mode;
   } else {
     throw InputError("--redetect " + args.redetect + ": must be every, lost or never");
   }
