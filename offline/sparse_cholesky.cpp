@@ -52,6 +52,16 @@ const char* to_string(SparseCholeskyOrdering ordering) {
   return "unknown";
 }
 
+const char* to_string(SparseCholeskyMethod method) {
+  switch (method) {
+    case SparseCholeskyMethod::kSimplicial:
+      return "simplicial";
+    case SparseCholeskyMethod::kSupernodal:
+      return "supernodal";
+  }
+  return "unknown";
+}
+
 const char* to_string(SparseCholeskyStatus status) {
   switch (status) {
     case SparseCholeskyStatus::kOk:
@@ -127,8 +137,12 @@ struct SparseCholesky::Impl {
     cholmod_start(&common);
     common.print = 0;  // never print; failures are returned as statuses
     common.error_handler = nullptr;
-    common.supernodal = CHOLMOD_SUPERNODAL;
-    common.final_ll = 1;  // keep the LLᵀ form (no conversion to LDLᵀ after factorising)
+    // Simplicial: CHOLMOD's row-oriented LLᵀ (no BLAS); supernodal: dense BLAS on supernodes.
+    common.supernodal = options.method == SparseCholeskyMethod::kSupernodal ? CHOLMOD_SUPERNODAL
+                                                                            : CHOLMOD_SIMPLICIAL;
+    // LLᵀ, not LDLᵀ: the simplicial factorisation then stops at a non-positive pivot as the
+    // supernodal one does (kNotPositiveDefinite), and the supernodal one is not converted after.
+    common.final_ll = 1;
     switch (options.ordering) {
       case SparseCholeskyOrdering::kMetis:
         common.nmethods = 1;

@@ -1,10 +1,12 @@
 #pragma once
 /// Sparse Cholesky factorisation A = LLᵀ of a symmetric positive-definite matrix with CHOLMOD
-/// (SuiteSparse) on OpenBLAS: supernodal, symbolic analysis once per sparsity pattern, numeric
-/// factorisation many times with new values, and solves for many right-hand sides as one block
-/// (shared/reference/performance_facts.md: supernodal + OpenBLAS is 3–4x faster than reference
-/// BLAS, METIS ordering has ~23% less fill than AMD, a 900-column block solve is 2–5x faster than
-/// 900 single solves).
+/// (SuiteSparse): symbolic analysis once per sparsity pattern, numeric factorisation many times
+/// with new values, and solves for many right-hand sides as one block. Two numeric methods
+/// (SparseCholeskyMethod): simplicial (plain loops, no BLAS: the same bits on every x86-64 CPU and
+/// thread count; the default) and supernodal on OpenBLAS (shared/reference/performance_facts.md:
+/// 3–4x faster than reference BLAS on large meshes, but OpenBLAS picks its kernels by CPU at run
+/// time, so the last bits of every factor and solve depend on the machine). METIS ordering has
+/// ~23% less fill than AMD; a 900-column block solve is 2–5x faster than 900 single solves.
 ///
 /// Storage: only the upper triangle (row ≤ column) of the given matrix is read; entries below the
 /// diagonal are ignored. So both full symmetric storage and upper-triangle-only storage
@@ -30,8 +32,24 @@ enum class SparseCholeskyOrdering {
 
 const char* to_string(SparseCholeskyOrdering ordering);
 
+/// Numeric factorisation and solve method.
+enum class SparseCholeskyMethod {
+  /// CHOLMOD's simplicial (row-oriented) LLᵀ and solves: no BLAS call, so the result does not
+  /// depend on the OpenBLAS kernel the CPU selects (OPENBLAS_CORETYPE) nor on thread counts.
+  /// The Gauss–Newton registration amplifies last-bit differences into different outcomes
+  /// (sub-verse013: 0.837 mm with OpenBLAS's SkylakeX kernels, 0.797 mm with Haswell's), so this
+  /// is the default: slower on large factors (no dense kernels), the same answer everywhere.
+  kSimplicial,
+  /// CHOLMOD's supernodal LLᵀ on OpenBLAS (dense BLAS/LAPACK on the supernodes): faster on large
+  /// factors (about 3x at 30k tets), rounding that depends on the CPU's BLAS kernels.
+  kSupernodal,
+};
+
+const char* to_string(SparseCholeskyMethod method);
+
 struct SparseCholeskyOptions {
   SparseCholeskyOrdering ordering = SparseCholeskyOrdering::kMetis;
+  SparseCholeskyMethod method = SparseCholeskyMethod::kSimplicial;
 };
 
 enum class SparseCholeskyStatus {

@@ -320,7 +320,17 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
   if (root.has("solver")) {
     const JsonCursor v = root.at("solver");
-    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor"});
+    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor", "cholesky"});
+    if (v.has("cholesky")) {
+      const std::string method = v.at("cholesky").string();
+      if (method == "simplicial") {
+        c.solver.cholesky = offline::SparseCholeskyMethod::kSimplicial;
+      } else if (method == "supernodal") {
+        c.solver.cholesky = offline::SparseCholeskyMethod::kSupernodal;
+      } else {
+        v.at("cholesky").fail("= \"" + method + "\" must be \"simplicial\" or \"supernodal\"");
+      }
+    }
     if (v.has("eigenvalue_floor")) {
       const double f = v.at("eigenvalue_floor").finite_number();
       if (!(f > 0 && f < 1)) v.at("eigenvalue_floor").fail("= " + number(f) + " must be in (0, 1)");
