@@ -272,6 +272,16 @@ TEST(SparseCholesky, SimplicialAndSupernodalAgreeAndBothReportNotPositiveDefinit
   }
   EXPECT_GT(X[0].norm(), 0.0);
   EXPECT_LT(relative_difference(X[0], X[1]), 1e-12);
+
+  // kAuto picks by the factor's size, the same on every machine.
+  SparseCholesky automatic;
+  ASSERT_EQ(automatic.analyse(A), SparseCholeskyStatus::kOk);
+  EXPECT_EQ(automatic.method_used(), SparseCholeskyMethod::kSimplicial);
+  SparseCholeskyOptions small_switch;
+  small_switch.simplicial_max_factor_nonzeros = 10.0;
+  SparseCholesky large(small_switch);
+  ASSERT_EQ(large.compute(A), SparseCholeskyStatus::kOk);
+  EXPECT_EQ(large.method_used(), SparseCholeskyMethod::kSupernodal);
 }
 
 TEST(SparseCholesky, OutOfOrderCallsAndBadShapesAreStatuses) {

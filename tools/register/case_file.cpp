@@ -323,12 +323,15 @@ RegistrationCase read_registration_case(const std::string& path) {
     v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor", "cholesky"});
     if (v.has("cholesky")) {
       const std::string method = v.at("cholesky").string();
-      if (method == "simplicial") {
+      if (method == "auto") {
+        c.solver.cholesky = offline::SparseCholeskyMethod::kAuto;
+      } else if (method == "simplicial") {
         c.solver.cholesky = offline::SparseCholeskyMethod::kSimplicial;
       } else if (method == "supernodal") {
         c.solver.cholesky = offline::SparseCholeskyMethod::kSupernodal;
       } else {
-        v.at("cholesky").fail("= \"" + method + "\" must be \"simplicial\" or \"supernodal\"");
+        v.at("cholesky")
+            .fail("= \"" + method + "\" must be \"auto\", \"simplicial\" or \"supernodal\"");
       }
     }
     if (v.has("eigenvalue_floor")) {
