@@ -330,7 +330,7 @@ EquilibriumSolver::EquilibriumSolver(const EquilibriumOptions& options,
       attachments_(&attachments),
       num_dofs_(exact.num_dofs()),
       exact_(std::move(exact)),
-      cholesky_(SparseCholeskyOptions{options.ordering}) {}
+      cholesky_(SparseCholeskyOptions{options.ordering, options.cholesky_method}) {}
 
 EquilibriumSolver::EquilibriumSolver(EquilibriumSolver&&) noexcept = default;
 EquilibriumSolver& EquilibriumSolver::operator=(EquilibriumSolver&&) noexcept = default;

@@ -94,6 +94,11 @@ struct EquilibriumOptions {
   bool reject_inversions = true;
   /// Fill-reducing ordering of the CHOLMOD analysis.
   SparseCholeskyOrdering ordering = SparseCholeskyOrdering::kMetis;
+  /// Numeric method of the Newton factorisations (and of the Gauss–Newton tangent, which is
+  /// the same matrix): simplicial (no BLAS, the same bits on every CPU), supernodal (faster on
+  /// large meshes, rounding that depends on the CPU's OpenBLAS kernels), or kAuto (simplicial up
+  /// to 1e6 nonzeros in the factor); see SparseCholeskyMethod.
+  SparseCholeskyMethod cholesky_method = SparseCholeskyMethod::kAuto;
 
   /// Ipopt's print_level, in [0, 12]; 0 is silent (the banner is suppressed too).
   int ipopt_print_level = 0;

@@ -49,6 +49,11 @@ int rigid_rounds(RegistrationStage stage) {
   return stage == RegistrationStage::kLandmarks ? 1 : 10;
 }
 
+// The Jacobian's tangent is the equilibrium's matrix: factorised the same way.
+SparseCholeskyOptions tangent_options(const GaussNewtonOptions& options) {
+  return SparseCholeskyOptions{options.equilibrium.ordering, options.equilibrium.cholesky_method};
+}
+
 // The state of one registration run: the solvers built once, and the current (s, x).
 class Registration {
  public:
@@ -61,10 +66,12 @@ class Registration {
         equilibrium_(std::move(equilibrium)),
         woodbury_(std::move(woodbury)),
         laplacian_(std::move(laplacian)),
+        tangent_(tangent_options(options)),
         constraints_(constraints),
         closest_point_(closest_point),
         options_(options),
-        free_(springs.size() == 0) {
+        free_(springs.size() == 0),
+        free_tangent_(tangent_options(options)) {
     const Eigen::MatrixXd rest = rest_matrix(energy_);
     diagonal_ = (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
   }

@@ -52,6 +52,18 @@ const char* to_string(SparseCholeskyOrdering ordering) {
   return "unknown";
 }
 
+const char* to_string(SparseCholeskyMethod method) {
+  switch (method) {
+    case SparseCholeskyMethod::kAuto:
+      return "auto";
+    case SparseCholeskyMethod::kSimplicial:
+      return "simplicial";
+    case SparseCholeskyMethod::kSupernodal:
+      return "supernodal";
+  }
+  return "unknown";
+}
+
 const char* to_string(SparseCholeskyStatus status) {
   switch (status) {
     case SparseCholeskyStatus::kOk:
@@ -127,8 +139,13 @@ struct SparseCholesky::Impl {
     cholmod_start(&common);
     common.print = 0;  // never print; failures are returned as statuses
     common.error_handler = nullptr;
-    common.supernodal = CHOLMOD_SUPERNODAL;
-    common.final_ll = 1;  // keep the LLᵀ form (no conversion to LDLᵀ after factorising)
+    // Simplicial: CHOLMOD's row-oriented LLᵀ (no BLAS); supernodal: dense BLAS on supernodes.
+    // kAuto analyses simplicially first and switches after looking at nnz(L) (analyse()).
+    common.supernodal = options.method == SparseCholeskyMethod::kSupernodal ? CHOLMOD_SUPERNODAL
+                                                                            : CHOLMOD_SIMPLICIAL;
+    // LLᵀ, not LDLᵀ: the simplicial factorisation then stops at a non-positive pivot as the
+    // supernodal one does (kNotPositiveDefinite), and the supernodal one is not converted after.
+    common.final_ll = 1;
     switch (options.ordering) {
       case SparseCholeskyOrdering::kMetis:
         common.nmethods = 1;
@@ -215,7 +232,17 @@ SparseCholeskyStatus SparseCholesky::analyse(const Eigen::SparseMatrix<double>& 
 
   const auto start = Clock::now();
   cholmod_sparse a = Impl::view(A);
+  d.common.supernodal = d.options.method == SparseCholeskyMethod::kSupernodal ? CHOLMOD_SUPERNODAL
+                                                                              : CHOLMOD_SIMPLICIAL;
   d.factor = cholmod_analyze(&a, &d.common);
+  // kAuto: a factor too large for the simplicial method's speed is analysed again supernodally
+  // (the ordering is the same; nnz(L) depends on the pattern only, so every machine agrees).
+  if (d.factor != nullptr && d.options.method == SparseCholeskyMethod::kAuto &&
+      d.common.lnz > d.options.simplicial_max_factor_nonzeros) {
+    cholmod_free_factor(&d.factor, &d.common);
+    d.common.supernodal = CHOLMOD_SUPERNODAL;
+    d.factor = cholmod_analyze(&a, &d.common);
+  }
   d.analysis_seconds = seconds_since(start);
   if (d.factor == nullptr) {
     const SparseCholeskyStatus s = d.status_from_common();
@@ -361,6 +388,11 @@ double SparseCholesky::total_factorisation_seconds() const {
 }
 int SparseCholesky::num_factorisations() const {
   return impl_->num_factorisations;
+}
+std::optional<SparseCholeskyMethod> SparseCholesky::method_used() const {
+  if (impl_->factor == nullptr) return std::nullopt;
+  return impl_->factor->is_super ? SparseCholeskyMethod::kSupernodal
+                                 : SparseCholeskyMethod::kSimplicial;
 }
 std::optional<std::string> SparseCholesky::ordering_used() const {
   if (impl_->factor == nullptr) return std::nullopt;

@@ -1,10 +1,13 @@
 #pragma once
 /// Sparse Cholesky factorisation A = LLᵀ of a symmetric positive-definite matrix with CHOLMOD
-/// (SuiteSparse) on OpenBLAS: supernodal, symbolic analysis once per sparsity pattern, numeric
-/// factorisation many times with new values, and solves for many right-hand sides as one block
-/// (shared/reference/performance_facts.md: supernodal + OpenBLAS is 3–4x faster than reference
-/// BLAS, METIS ordering has ~23% less fill than AMD, a 900-column block solve is 2–5x faster than
-/// 900 single solves).
+/// (SuiteSparse): symbolic analysis once per sparsity pattern, numeric factorisation many times
+/// with new values, and solves for many right-hand sides as one block. Two numeric methods
+/// (SparseCholeskyMethod): simplicial (plain loops, no BLAS: the same bits on every x86-64 CPU and
+/// thread count) and supernodal on OpenBLAS (shared/reference/performance_facts.md: 3–4x faster
+/// than reference BLAS on large meshes, but OpenBLAS picks its kernels by CPU at run time, so the
+/// last bits of every factor and solve depend on the machine); by default simplicial for small
+/// factors and supernodal for large ones (kAuto). METIS ordering has
+/// ~23% less fill than AMD; a 900-column block solve is 2–5x faster than 900 single solves.
 ///
 /// Storage: only the upper triangle (row ≤ column) of the given matrix is read; entries below the
 /// diagonal are ignored. So both full symmetric storage and upper-triangle-only storage
@@ -30,8 +33,36 @@ enum class SparseCholeskyOrdering {
 
 const char* to_string(SparseCholeskyOrdering ordering);
 
+/// Numeric factorisation and solve method.
+enum class SparseCholeskyMethod {
+  /// Simplicial when the analysis predicts at most SparseCholeskyOptions::
+  /// simplicial_max_factor_nonzeros nonzeros in L, supernodal above: the same answer on every
+  /// machine where that costs little, speed where it would cost much. A function of the pattern
+  /// alone, so every machine takes the same branch.
+  kAuto,
+  /// CHOLMOD's simplicial (row-oriented) LLᵀ and solves: no BLAS call, so the result does not
+  /// depend on the OpenBLAS kernel the CPU selects (OPENBLAS_CORETYPE) nor on thread counts.
+  /// The Gauss–Newton registration amplifies last-bit differences into different outcomes
+  /// (sub-verse013: 0.837 mm with OpenBLAS's SkylakeX kernels, 0.797 mm with Haswell's). Cost
+  /// against supernodal on this machine (box tet meshes, vector Laplacian, METIS): factorisation
+  /// 3x at 6k tets (nnz(L) 0.76 M: 0.11 s), 7.5x at 21k (4.0 M: 1.6 s), 16x at 49k (13 M: 12.6 s);
+  /// a 480-column solve 2.8x, 3.3x, 3.5x.
+  kSimplicial,
+  /// CHOLMOD's supernodal LLᵀ on OpenBLAS (dense BLAS/LAPACK on the supernodes): fast on large
+  /// factors, rounding that depends on the CPU's BLAS kernels.
+  kSupernodal,
+};
+
+const char* to_string(SparseCholeskyMethod method);
+
 struct SparseCholeskyOptions {
   SparseCholeskyOrdering ordering = SparseCholeskyOrdering::kMetis;
+  SparseCholeskyMethod method = SparseCholeskyMethod::kAuto;
+  /// kAuto's switch: the largest nnz(L) factorised simplicially. 1e6: the 4,227-tet vertebra
+  /// meshes, the 5,184-tet Fig. 4 beam and the tools' small cases are reproducible at no
+  /// measurable cost in their runs; the 12,288-tet ground-truth bar and larger meshes (the
+  /// 40k-tet liver) keep supernodal speed and depend on the machine's BLAS kernels.
+  double simplicial_max_factor_nonzeros = 1e6;
 };
 
 enum class SparseCholeskyStatus {
@@ -123,6 +154,9 @@ class SparseCholesky {
   double factorisation_seconds() const;
   double total_factorisation_seconds() const;
   int num_factorisations() const;
+  /// The numeric method of the analysed factor (kSimplicial or kSupernodal; kAuto resolved),
+  /// after analyse().
+  std::optional<SparseCholeskyMethod> method_used() const;
   /// The ordering CHOLMOD actually used (CHOLMOD's own name: "metis", "amd", "natural", ...),
   /// after analyse().
   std::optional<std::string> ordering_used() const;

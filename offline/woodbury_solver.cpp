@@ -3,8 +3,6 @@
 #include "offline/detail/column_blocks.hpp"
 #include "offline/detail/huge_pages.hpp"
 
-#include <cblas.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -98,11 +96,13 @@ std::optional<WoodburySolver> WoodburySolver::create(const TetAdjacency& adjacen
     return fail(out.str());
   }
   WoodburySolver solver;
+  detail::use_reproducible_product_blocking();
   solver.options_ = options;
   solver.num_tets_ = num_tets;
   solver.threads_ = detail::resolve_threads(options.threads);
   solver.work_.resize(static_cast<std::size_t>(solver.threads_));
-  solver.grounded_ = SparseCholesky(SparseCholeskyOptions{options.ordering});
+  solver.grounded_ =
+      SparseCholesky(SparseCholeskyOptions{options.ordering, options.cholesky_method});
   // L^sc without tet 0: SPD on a connected graph (a grounded graph Laplacian).
   solver.scalar_laplacian_ = scalar_tet_laplacian(adjacency, num_tets);
   const Eigen::SparseMatrix<double>& scalar = solver.scalar_laplacian_;
@@ -227,11 +227,10 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt
 
   start = Clock::now();
   Eigen::MatrixXd capacitance = Eigen::MatrixXd::Identity(r + 6, r + 6);
-  // YᵀY through OpenBLAS's dsyrk (upper triangle), then mirrored.
-  Eigen::MatrixXd YtY(r, r);
-  cblas_dsyrk(CblasColMajor, CblasUpper, CblasTrans, static_cast<int>(r), static_cast<int>(size()),
-              1.0, Y.data(), static_cast<int>(Y.outerStride()), 0.0, YtY.data(),
-              static_cast<int>(YtY.outerStride()));
+  // YᵀY (upper triangle, then mirrored) with Eigen's product at a fixed blocking, not OpenBLAS's
+  // dsyrk: dsyrk's kernels are chosen by CPU at run time and round differently on each.
+  Eigen::MatrixXd YtY = Eigen::MatrixXd::Zero(r, r);
+  YtY.selfadjointView<Eigen::Upper>().rankUpdate(Y.transpose());
   YtY.triangularView<Eigen::StrictlyLower>() = YtY.transpose();
   capacitance.topLeftCorner(r, r) += YtY - Z_psi_ * Z_psi_.transpose();
   capacitance.topRightCorner(r, 6) = -k * Z_psi_;

@@ -33,6 +33,9 @@ namespace sinew::offline {
 struct WoodburySolverOptions {
   /// Ordering of the Cholesky factorisation of the grounded scalar Laplacian.
   SparseCholeskyOrdering ordering = SparseCholeskyOrdering::kMetis;
+  /// Its numeric method (see SparseCholeskyMethod); kAuto: simplicial (the same bits on every
+  /// CPU) up to 1e6 nonzeros in the factor, supernodal above.
+  SparseCholeskyMethod cholesky_method = SparseCholeskyMethod::kAuto;
   /// Right-hand sides of B⁻¹ handled per block solve (each becomes 6 columns of L^sc solves):
   /// bounds the work memory to about 12·m·block_columns doubles per thread; ≥ 1. CHOLMOD's
   /// supernodal solve is fastest per column at 48–192 columns on this machine (0.79 ms per column

@@ -3,6 +3,7 @@
 #include <sched.h>
 
 #include <algorithm>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -46,6 +47,12 @@ void for_each_column_block(Eigen::Index columns, Eigen::Index block, int threads
   run(0);
   for (std::thread& t : pool) t.join();
   openblas_set_num_threads(blas_threads);
+}
+
+void use_reproducible_product_blocking() {
+  static std::once_flag once;
+  // Typical x86-64 sizes (L1d 32 KiB, L2 512 KiB, L3 4 MiB): the same blocking everywhere.
+  std::call_once(once, [] { Eigen::setCpuCacheSizes(32 * 1024, 512 * 1024, 4 * 1024 * 1024); });
 }
 
 }  // namespace sinew::offline::detail

@@ -23,4 +23,11 @@ int resolve_threads(int requested);
 void for_each_column_block(Eigen::Index columns, Eigen::Index block, int threads,
                            const std::function<void(int, Eigen::Index, Eigen::Index)>& work);
 
+/// Sets Eigen's matrix-product blocking from fixed cache sizes instead of the sizes it reads from
+/// the CPU (cpuid) once per process. The blocking decides how a long inner dimension is split
+/// and which rows take which micro-kernel, so with the CPU's own sizes a product such as the
+/// Woodbury capacitance YᵀY (k = 6m) rounds differently on CPUs with other caches. Idempotent and
+/// thread-safe; called by the solvers that need reproducible products.
+void use_reproducible_product_blocking();
+
 }  // namespace sinew::offline::detail

@@ -1,6 +1,9 @@
 #include "offline/meshing/tet_mesher.hpp"
 
 // CGAL is confined to this translation unit (and surface_closest_point.cpp).
+#include <CGAL/AABB_face_graph_triangle_primitive.h>
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/ImageIO.h>
 #include <CGAL/Image_3.h>
@@ -9,6 +12,8 @@
 #include <CGAL/Mesh_criteria_3.h>
 #include <CGAL/Mesh_optimization_return_code.h>
 #include <CGAL/Mesh_triangulation_3.h>
+#include <CGAL/Polygon_mesh_processing/compute_normal.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Polyhedral_mesh_domain_with_features_3.h>
 #include <CGAL/Random.h>
@@ -28,6 +33,7 @@
 #include <cstring>
 #include <exception>
 #include <map>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <type_traits>
@@ -305,6 +311,51 @@ using ImageTriangulation =
     CGAL::Mesh_triangulation_3<ImageDomain, CGAL::Default, CGAL::Sequential_tag>::type;
 using ImageComplex = CGAL::Mesh_complex_3_in_triangulation_3<ImageTriangulation>;
 
+/// The size field of TetMesherOptions::tets_across_thickness: min(largest, thickness / across),
+/// at least smallest, with the thickness at p the chord through the solid along the inward normal
+/// of the surface face closest to p (the first hit of a ray cast inwards from just inside it).
+class ThicknessSizing {
+ public:
+  using FT = Kernel::FT;
+  ThicknessSizing(const SurfaceMesh& surface, double largest, double smallest, double across)
+      : surface_(&surface),
+        tree_(std::make_shared<Tree>(faces(surface).first, faces(surface).second, surface)),
+        largest_(largest),
+        smallest_(smallest),
+        across_(across),
+        inward_(CGAL::Polygon_mesh_processing::is_outward_oriented(surface) ? -1.0 : 1.0) {
+    tree_->accelerate_distance_queries();
+  }
+
+  /// The chord length through the solid at p (largest·across when the ray finds no exit).
+  double thickness(const Kernel::Point_3& p) const {
+    const auto [q, face] = tree_->closest_point_and_primitive(p);
+    const Kernel::Vector_3 n =
+        inward_ * CGAL::Polygon_mesh_processing::compute_face_normal(face, *surface_);
+    const double offset = 1e-6 * largest_;
+    const Kernel::Point_3 start = q + offset * n;
+    const auto hit = tree_->first_intersection(Kernel::Ray_3(start, n));
+    if (!hit) return largest_ * across_;
+    if (const auto* point = boost::get<Kernel::Point_3>(&hit->first)) {
+      return std::sqrt(CGAL::squared_distance(start, *point)) + offset;
+    }
+    return largest_ * across_;  // a ray along a face (a segment hit): no usable chord
+  }
+
+  template <class Index>
+  FT operator()(const Kernel::Point_3& p, const int /*dimension*/, const Index& /*index*/) const {
+    return std::clamp(thickness(p) / across_, smallest_, largest_);
+  }
+
+ private:
+  using Primitive = CGAL::AABB_face_graph_triangle_primitive<SurfaceMesh>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
+  const SurfaceMesh* surface_;
+  std::shared_ptr<Tree> tree_;  // shared: Mesh_3 copies its criteria
+  double largest_, smallest_, across_;
+  double inward_;  // −1 when the faces are oriented outwards (their normals then point out)
+};
+
 /// Surface_mesh of the referenced vertices (renumbered) and the faces. False if CGAL refuses a
 /// face (non-manifold configuration missed by the checks).
 bool build_surface_mesh(const Eigen::Ref<const Eigen::MatrixXd>& V,
@@ -373,14 +424,27 @@ TetMesh extract_tets(const C3T3& c3t3, int* flipped) {
 template <class C3T3, class Domain>
 std::optional<std::pair<TetMesherStatus, std::string>> refine_and_optimise(
     const Domain& domain, bool features, double diagonal, const TetMesherOptions& options,
-    TetMesherResult& result, Clock::time_point meshing_start) {
+    TetMesherResult& result, Clock::time_point meshing_start,
+    const SurfaceMesh* surface = nullptr) {
   TetMesherSummary& summary = result.summary;
   namespace p = CGAL::parameters;
   const double cell_size = options.cell_size_fraction * diagonal;
-  const typename CGAL::Mesh_criteria_3<typename C3T3::Triangulation> criteria(
-      p::edge_size = cell_size, p::facet_angle = options.facet_angle_degrees,
-      p::facet_size = cell_size, p::facet_distance = options.facet_distance_fraction * diagonal,
-      p::cell_radius_edge_ratio = options.cell_radius_edge_ratio, p::cell_size = cell_size);
+  using Criteria3 = CGAL::Mesh_criteria_3<typename C3T3::Triangulation>;
+  const Criteria3 criteria = [&] {
+    if (surface != nullptr && options.tets_across_thickness > 0.0) {
+      const ThicknessSizing sizing(*surface, cell_size,
+                                   std::min(cell_size, options.min_size_fraction * diagonal),
+                                   options.tets_across_thickness);
+      return Criteria3(
+          p::edge_size = cell_size, p::facet_angle = options.facet_angle_degrees,
+          p::facet_size = sizing, p::facet_distance = options.facet_distance_fraction * diagonal,
+          p::cell_radius_edge_ratio = options.cell_radius_edge_ratio, p::cell_size = sizing);
+    }
+    return Criteria3(
+        p::edge_size = cell_size, p::facet_angle = options.facet_angle_degrees,
+        p::facet_size = cell_size, p::facet_distance = options.facet_distance_fraction * diagonal,
+        p::cell_radius_edge_ratio = options.cell_radius_edge_ratio, p::cell_size = cell_size);
+  }();
 
   // Refinement, then each optimisation phase on its own (timed, return code read). Time limits
   // are explicit: make_mesh_3's default for perturbation and exudation (the refinement time)
@@ -456,6 +520,10 @@ std::optional<std::string> TetMesherOptions::validate() const {
   std::ostringstream s;
   if (!(cell_size_fraction > 0.0 && cell_size_fraction <= 1.0)) {
     s << "cell_size_fraction = " << cell_size_fraction << " must be in (0, 1]";
+  } else if (!(tets_across_thickness >= 0.0 && std::isfinite(tets_across_thickness))) {
+    s << "tets_across_thickness = " << tets_across_thickness << " must be >= 0";
+  } else if (!(min_size_fraction > 0.0 && min_size_fraction <= 1.0)) {
+    s << "min_size_fraction = " << min_size_fraction << " must be in (0, 1]";
   } else if (!(facet_distance_fraction > 0.0 && facet_distance_fraction <= 1.0)) {
     s << "facet_distance_fraction = " << facet_distance_fraction << " must be in (0, 1]";
   } else if (!(facet_angle_degrees > 0.0 && facet_angle_degrees <= 30.0)) {
@@ -624,7 +692,7 @@ TetMesherResult make_tet_mesh(const Eigen::Ref<const Eigen::MatrixXd>& vertices,
 
     const std::optional<std::pair<TetMesherStatus, std::string>> failed =
         refine_and_optimise<Complex>(domain, options.protect_sharp_features, diagonal, options,
-                                     result, meshing_start);
+                                     result, meshing_start, &sm);
     if (failed) return finish(failed->first, failed->second);
   } catch (const std::exception& e) {
     summary.meshing_seconds = seconds_since(meshing_start);

@@ -34,6 +34,14 @@ struct TetMesherOptions {
   /// protection, the edges along sharp creases. Halving it gives about 8 times more tets; the
   /// default gives a few thousand tets for a compact, roughly convex (organ-like) shape.
   double cell_size_fraction = 0.06;
+  /// Thickness-sized cells (surface input only): at each point the cell and facet size bound is
+  /// min(cell_size_fraction·diagonal, thickness / tets_across_thickness), where the thickness is
+  /// the chord through the solid along the inward normal at the surface point closest to the
+  /// point (a ray cast on the input surface), so thin parts get about this many tets across;
+  /// never below min_size_fraction·diagonal. 0 (the default): the uniform bound alone; ≥ 0.
+  double tets_across_thickness = 0.0;
+  /// Lower bound of the thickness-sized bound, as a fraction of the diagonal; in (0, 1].
+  double min_size_fraction = 0.005;
   /// Upper bound on the distance between a surface facet's circumcentre and its surface Delaunay
   /// ball centre (the approximation error of the surface), as a fraction of the bounding-box
   /// diagonal; in (0, 1]. Smaller values refine the surface more where it is curved.

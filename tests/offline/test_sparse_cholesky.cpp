@@ -1,8 +1,8 @@
-// Tests of offline/sparse_cholesky: CHOLMOD's supernodal LLᵀ against Eigen's SimplicialLDLT on a
-// random SPD matrix and on a box-mesh Laplacian plus a shift (full and upper storage), a block of
-// right-hand sides against column-by-column solves, refactorisation with new values on the
-// analysed pattern, and the statuses for a matrix that is not positive definite, a different
-// pattern and out-of-order calls.
+// Tests of offline/sparse_cholesky: CHOLMOD's LLᵀ (simplicial by default; the supernodal method
+// against it) against Eigen's SimplicialLDLT on a random SPD matrix and on a box-mesh Laplacian
+// plus a shift (full and upper storage), a block of right-hand sides against column-by-column
+// solves, refactorisation with new values on the analysed pattern, and the statuses for a matrix
+// that is not positive definite, a different pattern and out-of-order calls.
 
 #include "offline/sparse_cholesky.hpp"
 
@@ -244,6 +244,44 @@ TEST(SparseCholesky, NotPositiveDefiniteIsAStatusWithTheFailedColumn) {
   SparseCholesky diagonal;
   EXPECT_EQ(diagonal.compute(D), SparseCholeskyStatus::kNotPositiveDefinite);
   EXPECT_EQ(diagonal.failed_column(), std::optional<Eigen::Index>(bad));
+}
+
+TEST(SparseCholesky, SimplicialAndSupernodalAgreeAndBothReportNotPositiveDefinite) {
+  // The two numeric methods factor the same matrix; supernodal's dense kernels round differently,
+  // so they agree to rounding, not bit for bit. Both stop at a non-positive pivot (simplicial only
+  // because the factor is LLᵀ: an LDLᵀ one would accept it).
+  const SparseMatrix A = box_laplacian(0.05);
+  std::mt19937 gen(13);
+  Eigen::MatrixXd B(A.rows(), 5);
+  for (Eigen::Index j = 0; j < B.cols(); ++j) B.col(j) = testing::random_vector(A.rows(), 1.0, gen);
+  Eigen::MatrixXd X[2];
+  const SparseCholeskyMethod methods[2] = {SparseCholeskyMethod::kSimplicial,
+                                           SparseCholeskyMethod::kSupernodal};
+  for (int k = 0; k < 2; ++k) {
+    SparseCholesky cholesky(SparseCholeskyOptions{SparseCholeskyOrdering::kMetis, methods[k]});
+    ASSERT_EQ(cholesky.compute(A), SparseCholeskyStatus::kOk) << to_string(methods[k]);
+    X[k].resize(A.rows(), B.cols());
+    ASSERT_EQ(cholesky.solve_in_blocks(B, X[k], 2, 2), SparseCholeskyStatus::kOk);
+    EXPECT_LT((A * X[k] - B).norm(), 1e-10 * B.norm()) << to_string(methods[k]);
+
+    SparseMatrix indefinite = A;
+    indefinite.coeffRef(7, 7) = -1.0;
+    EXPECT_EQ(cholesky.factorise(indefinite), SparseCholeskyStatus::kNotPositiveDefinite)
+        << to_string(methods[k]);
+    EXPECT_TRUE(cholesky.failed_column().has_value());
+  }
+  EXPECT_GT(X[0].norm(), 0.0);
+  EXPECT_LT(relative_difference(X[0], X[1]), 1e-12);
+
+  // kAuto picks by the factor's size, the same on every machine.
+  SparseCholesky automatic;
+  ASSERT_EQ(automatic.analyse(A), SparseCholeskyStatus::kOk);
+  EXPECT_EQ(automatic.method_used(), SparseCholeskyMethod::kSimplicial);
+  SparseCholeskyOptions small_switch;
+  small_switch.simplicial_max_factor_nonzeros = 10.0;
+  SparseCholesky large(small_switch);
+  ASSERT_EQ(large.compute(A), SparseCholeskyStatus::kOk);
+  EXPECT_EQ(large.method_used(), SparseCholeskyMethod::kSupernodal);
 }
 
 TEST(SparseCholesky, OutOfOrderCallsAndBadShapesAreStatuses) {

@@ -174,7 +174,8 @@ void parse_mesh_options(const JsonCursor& m, offline::TetMesherOptions& o) {
   m.expect_keys({"cell_size_fraction", "facet_distance_fraction", "facet_angle_degrees",
                  "cell_radius_edge_ratio", "odt", "lloyd", "smoothing_iterations", "perturb",
                  "exude", "sliver_bound_degrees", "protect_sharp_features", "feature_angle_degrees",
-                 "random_seed", "max_vertices", "optimisation_time_limit_seconds"});
+                 "random_seed", "max_vertices", "optimisation_time_limit_seconds",
+                 "tets_across_thickness", "min_size_fraction"});
   auto real = [&](const char* key, double& out) {
     if (m.has(key)) out = m.at(key).finite_number();
   };
@@ -182,6 +183,8 @@ void parse_mesh_options(const JsonCursor& m, offline::TetMesherOptions& o) {
     if (m.has(key)) out = m.at(key).boolean();
   };
   real("cell_size_fraction", o.cell_size_fraction);
+  real("tets_across_thickness", o.tets_across_thickness);
+  real("min_size_fraction", o.min_size_fraction);
   real("facet_distance_fraction", o.facet_distance_fraction);
   real("facet_angle_degrees", o.facet_angle_degrees);
   real("cell_radius_edge_ratio", o.cell_radius_edge_ratio);
@@ -320,7 +323,20 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
   if (root.has("solver")) {
     const JsonCursor v = root.at("solver");
-    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor"});
+    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor", "cholesky"});
+    if (v.has("cholesky")) {
+      const std::string method = v.at("cholesky").string();
+      if (method == "auto") {
+        c.solver.cholesky = offline::SparseCholeskyMethod::kAuto;
+      } else if (method == "simplicial") {
+        c.solver.cholesky = offline::SparseCholeskyMethod::kSimplicial;
+      } else if (method == "supernodal") {
+        c.solver.cholesky = offline::SparseCholeskyMethod::kSupernodal;
+      } else {
+        v.at("cholesky")
+            .fail("= \"" + method + "\" must be \"auto\", \"simplicial\" or \"supernodal\"");
+      }
+    }
     if (v.has("eigenvalue_floor")) {
       const double f = v.at("eigenvalue_floor").finite_number();
       if (!(f > 0 && f < 1)) v.at("eigenvalue_floor").fail("= " + number(f) + " must be in (0, 1)");

@@ -55,6 +55,7 @@
 #include <vector>
 
 #include "offline/meshing/tet_mesher.hpp"
+#include "offline/sparse_cholesky.hpp"
 
 namespace sinew::tools {
 
@@ -132,6 +133,15 @@ struct RegistrationCase {
     /// inverted no tet. 0.1 stalled the same way; with 0.2 sub-verse018 and 023 end by a
     /// convergence test, 013 at the iteration limit (docs/registration.md).
     double eigenvalue_floor = 0.2;
+    /// Sparse Cholesky method of every factorisation ("solver": {"cholesky": "auto" |
+    /// "simplicial" | "supernodal"}; offline::SparseCholeskyMethod). Simplicial has no BLAS, so
+    /// the run is the same with every OpenBLAS kernel and thread count (tests/tools/
+    /// register_stability_sweep.sh); supernodal is much faster on large meshes but its result
+    /// depends on the CPU (sub-verse013: 0.837 mm with the SkylakeX kernels, 0.797 with
+    /// Haswell's). Default auto: simplicial up to 1e6 nonzeros in the factor (meshes up to about
+    /// 8k tets, the vertebrae included), supernodal above; "simplicial" makes a large mesh
+    /// reproducible too, at 7-16x the factorisation time (21k-49k tets).
+    offline::SparseCholeskyMethod cholesky = offline::SparseCholeskyMethod::kAuto;
   } solver;
   offline::TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
   bool mesh_options_given = false;

@@ -506,6 +506,8 @@ int run(const RunRequest& request) {
   options.damped_step_trials = c.solver.damped_step_trials;
   options.predictor_warm_start = c.solver.predictor_warm_start;
   options.eigenvalue_floor = c.solver.eigenvalue_floor;
+  options.equilibrium.cholesky_method = c.solver.cholesky;
+  options.woodbury.cholesky_method = c.solver.cholesky;
   if (auto error = options.validate()) throw tools::InputError(case_path + ": " + *error);
 
   // What a checkpoint must match to be resumed here: mode, mesh, markers, output surface, options.
@@ -535,7 +537,8 @@ int run(const RunRequest& request) {
                                {"landmark_stage", options.landmark_stage},
                                {"damped_step_trials", options.damped_step_trials},
                                {"predictor_warm_start", options.predictor_warm_start},
-                               {"eigenvalue_floor", tools::hex_double(options.eigenvalue_floor)}};
+                               {"eigenvalue_floor", tools::hex_double(options.eigenvalue_floor)},
+                               {"cholesky", offline::to_string(c.solver.cholesky)}};
   for (const double f : options.icp_weight_ramp) {
     identification["options"]["icp_weight_ramp"].push_back(tools::hex_double(f));
   }
@@ -682,6 +685,7 @@ int run(const RunRequest& request) {
                        {"max_marker_error", max_marker_error},
                        {"min_step", options.min_step},
                        {"icp_weight_ramp", options.icp_weight_ramp},
+                       {"cholesky", offline::to_string(c.solver.cholesky)},
                        {"mesh_cell_size_fraction", c.mesh.cell_size_fraction}};
   nlohmann::json iterations = nlohmann::json::array();
   for (const offline::GaussNewtonIteration& it : summary.iterations) {

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <utility>
 #include <vector>
@@ -399,3 +400,54 @@ TEST(TetMesher, VertexLimitIsReported) {
 }
 
 }  // namespace
+
+namespace {
+
+// Per tet of a mesh of the slab 0 ≤ z ≤ thickness: its extent in z over the thickness (1: the tet
+// spans the slab, one tet across; 1/3: three across).
+std::vector<double> z_extents(const TetMesh& mesh, double thickness) {
+  std::vector<double> extents;
+  for (Eigen::Index t = 0; t < mesh.tets.rows(); ++t) {
+    double low = std::numeric_limits<double>::infinity(), high = -low;
+    for (int a = 0; a < 4; ++a) {
+      const double z = mesh.vertices(mesh.tets(t, a), 2);
+      low = std::min(low, z);
+      high = std::max(high, z);
+    }
+    extents.push_back((high - low) / thickness);
+  }
+  return extents;
+}
+
+double median(std::vector<double> values) {
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
+
+}  // namespace
+
+TEST(TetMesher, ThicknessSizedCellsPutSeveralTetsAcrossAThinSlab) {
+  // A 0.5 x 0.5 x 0.04 slab: the uniform bound (0.15 of the diagonal, 0.11) puts one tet across;
+  // sized from the thickness (the chord along the inward normal, 0.04) the tets are
+  // thickness / 3 in circumradius, so a tet spans about a third to a half of the slab.
+  const double thickness = 0.04;
+  const Surface slab = box(0.5, 0.5, thickness);
+  TetMesherOptions options;
+  options.cell_size_fraction = 0.15;
+  options.protect_sharp_features = true;
+  const TetMesherResult uniform = make_tet_mesh(slab.V, slab.F, options);
+  ASSERT_TRUE(uniform.summary.ok()) << uniform.summary.brief_report();
+  options.tets_across_thickness = 3.0;
+  const TetMesherResult sized = make_tet_mesh(slab.V, slab.F, options);
+  ASSERT_TRUE(sized.summary.ok()) << sized.summary.brief_report();
+  const double uniform_median = median(z_extents(uniform.mesh, thickness));
+  const double sized_median = median(z_extents(sized.mesh, thickness));
+  std::cout << "slab: uniform " << uniform.summary.num_tets << " tets, median z extent "
+            << uniform_median << " of the thickness; thickness-sized " << sized.summary.num_tets
+            << " tets, " << sized_median << "\n";
+  EXPECT_GT(uniform_median, 0.9);
+  EXPECT_LT(sized_median, 0.6);
+  EXPECT_GT(sized.summary.num_tets, uniform.summary.num_tets);
+  EXPECT_NEAR(sized.summary.tet_volume, 0.25 * thickness, 1e-6);
+  EXPECT_TRUE(sinew::common::check_tet_mesh(sized.mesh.vertices, sized.mesh.tets).ok());
+}
