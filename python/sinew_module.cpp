@@ -8,16 +8,32 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "rt/tracker.hpp"
 #include "rt/whisker/session.hpp"
+#include "tools/simulate/simulation.hpp"
 #include "tools/track/track_init.hpp"
 
 namespace py = pybind11;
 using namespace sinew;
 
 namespace {
+
+// A dict or a JSON file as nlohmann::json.
+nlohmann::json json_of(const py::object& source, const char* caller, std::string* name) {
+  if (py::isinstance<py::str>(source)) {
+    *name = source.cast<std::string>();
+    return tools::read_json_file(*name);
+  }
+  if (py::isinstance<py::dict>(source)) {
+    *name = "<dict>";
+    const std::string text = py::module_::import("json").attr("dumps")(source).cast<std::string>();
+    return nlohmann::json::parse(text);
+  }
+  throw py::type_error(std::string(caller) + ": a path to a JSON file or a dict");
+}
 
 rt::FaceSide face_side(const std::string& face) {
   if (auto side = rt::face_side_from_string(face)) return *side;
@@ -60,15 +76,9 @@ class PyTracker {
   explicit PyTracker(const py::object& init) {
     tools::TrackInit parsed;
     try {
-      if (py::isinstance<py::str>(init)) {
-        parsed = tools::read_track_init(init.cast<std::string>());
-      } else if (py::isinstance<py::dict>(init)) {
-        const std::string text =
-            py::module_::import("json").attr("dumps")(init).cast<std::string>();
-        parsed = tools::parse_track_init(nlohmann::json::parse(text), "<init dict>");
-      } else {
-        throw py::type_error("Tracker(init): a path to an init JSON file or a dict");
-      }
+      std::string name;
+      const nlohmann::json doc = json_of(init, "Tracker(init)", &name);
+      parsed = tools::parse_track_init(doc, name);
     } catch (const tools::InputError& e) {
       throw py::value_error(e.what());
     }
@@ -233,6 +243,41 @@ class PyWhiskers {
   long frames_ = 0;
 };
 
+py::dict simulate(const py::object& beam) {
+  std::optional<tools::SimulationCase> parsed;
+  try {
+    std::string name;
+    const nlohmann::json doc = json_of(beam, "simulate(beam)", &name);
+    parsed.emplace(tools::parse_simulation(doc, name));
+  } catch (const tools::InputError& e) {
+    throw py::value_error(e.what());
+  }
+  const tools::SimulationCase& c = *parsed;
+  tools::SimulationResult r;
+  {
+    py::gil_scoped_release release;
+    r = tools::simulate(c);
+  }
+  const int n = c.model.num_nodes();
+  py::array_t<double> nodes({n, 3});
+  auto nv = nodes.mutable_unchecked<2>();
+  const Eigen::Matrix2Xd x = c.model.current_positions(r.u);
+  for (int i = 0; i < n; ++i) {
+    nv(i, 0) = x(0, i);
+    nv(i, 1) = x(1, i);
+    nv(i, 2) = r.u[3 * i + 2];
+  }
+  py::dict out;
+  out["nodes"] = nodes;
+  out["converged"] = r.summary.converged();
+  out["iterations"] = r.summary.iterations;
+  out["status"] = common::to_string(r.summary.status);
+  out["load_steps"] = r.summary.load_steps_taken;
+  out["load_factor"] = r.summary.load_factor;
+  out["residual"] = r.summary.residual_norm;
+  return out;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_sinew, m) {
@@ -252,6 +297,13 @@ forces (n x 3: fx, fy, m; the fitted loads when the init names load_nodes), rms_
 iterations, repetitions, inlier_fraction, object_fraction, latency_us (the C++ tracking time).
 )doc")
       .def_property_readonly("num_nodes", &PyTracker::num_nodes);
+
+  m.def("simulate", &simulate, py::arg("beam"), R"doc(
+The static equilibrium of a geometrically nonlinear plane beam under loads, as sinew-simulate
+computes it. beam: sinew-simulate's beam file, a path or the same content as a dict (nodes, fixed,
+material, loads, steps, options). Returns a dict with the keys of sinew-simulate's output: nodes
+(n x 3: x, y, theta), converged, iterations, status, load_steps, load_factor, residual.
+)doc");
 
   py::class_<PyWhiskers>(m, "Whiskers", R"doc(
 Every whisker of a video, found on the first frame with no initialisation and tracked with stable

@@ -11,59 +11,19 @@
 
 #include "common/beam/static_solver.hpp"
 #include "tools/io/beam_json.hpp"
+#include "tools/simulate/simulation.hpp"
 
 namespace {
 
 using namespace sinew;
 
 int run(const std::string& beam_path, const std::string& out_path, bool quiet) {
-  const nlohmann::json doc = tools::read_json_file(beam_path);
-  const tools::JsonCursor root(doc, beam_path);
-  root.expect_keys({"nodes", "fixed", "material", "loads", "steps", "options"});
-  common::BeamModel model(tools::parse_beam_description(root));
-  if (!model.valid()) throw tools::InputError(beam_path + ": " + model.error());
-  const Eigen::VectorXd loads = tools::parse_beam_loads(root, model.num_nodes());
-
-  common::StaticSolverOptions options;
-  if (root.has("steps")) {
-    const tools::JsonCursor steps = root.at("steps");
-    const long s = steps.integer();
-    if (s < 1 || s > 100000) steps.fail("= " + std::to_string(s) + " must be in [1, 100000]");
-    options.load_steps = static_cast<int>(s);
-  } else {
-    // Default increments from the size of the load: PL²/EI ≈ load scale; ~4 steps per unit.
-    const double L = model.total_length();
-    double lambda = 0.0;
-    for (int i = 0; i < model.num_dofs(); ++i) {
-      lambda = std::max(
-          lambda, std::abs(loads[i]) * (i % 3 == 2 ? L : L * L) / model.max_bending_stiffness());
-    }
-    options.load_steps = std::max(1, static_cast<int>(std::ceil(4.0 * lambda)));
-  }
-  if (root.has("options")) {
-    const tools::JsonCursor o = root.at("options");
-    o.expect_keys({"max_iterations_per_step", "max_step_cuts", "residual_tolerance"});
-    if (o.has("max_iterations_per_step")) {
-      options.max_iterations_per_step = static_cast<int>(o.at("max_iterations_per_step").integer());
-    }
-    if (o.has("max_step_cuts"))
-      options.max_step_cuts = static_cast<int>(o.at("max_step_cuts").integer());
-    if (o.has("residual_tolerance")) {
-      options.residual_tolerance = o.at("residual_tolerance").finite_number();
-    }
-  }
-  if (auto err = options.validate()) throw tools::InputError(beam_path + ": options." + *err);
-
-  if (!model.rigid_motions_constrained()) {
-    throw tools::InputError(
-        beam_path + ": fixed: the fixed dofs leave a rigid motion free (" +
-        std::to_string(model.num_fixed_dofs()) +
-        " fixed), so the static problem is singular; fix e.g. ux, uy and theta of one node");
-  }
-
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(model.num_dofs());
-  common::StaticBeamSolver solver(model, options);
-  const common::StaticSolverSummary summary = solver.solve(loads, u);
+  const tools::SimulationCase c =
+      tools::parse_simulation(tools::read_json_file(beam_path), beam_path);
+  const common::BeamModel& model = c.model;
+  const tools::SimulationResult result = tools::simulate(c);
+  const Eigen::VectorXd& u = result.u;
+  const common::StaticSolverSummary& summary = result.summary;
 
   nlohmann::json out;
   out["nodes"] = tools::beam_state_to_json(model, u);
