@@ -3,7 +3,8 @@
 // with the seed's own pipeline and the snake baseline, each with its node RMS error against the
 // true shape (a speed ratio only means something between trackers that both track):
 //   ours       edge observations read along the normals, block-tridiagonal Newton solve;
-//   +forces    ours with the per-frame force verification and the tip load fit;
+//   +forces    ours with the per-frame force verification and the tip load fit (coupled; the
+//              nested fit it replaced runs beside it at 16 elements);
 //   paper      seed 000 §4 as published: a full-frame Canny edge map of every frame, the edge
 //   pixels
 //              nearest the model along the normals (ObservationMode::kEdgeMap), dense Newton solve;
@@ -97,7 +98,7 @@ const Sequence& sequence() {
   return all;
 }
 
-enum class Pipeline { kOurs, kOursWithForces, kPaper, kSnake };
+enum class Pipeline { kOurs, kOursWithForces, kOursWithForcesNested, kPaper, kSnake };
 
 // The paper pipeline's edge map: Canny on the frame smoothed by a 5x5 Gaussian (σ = 1; without it
 // the σ = 8 noise breaks the edges into fragments). Hysteresis 40 / 100 on the L1 Sobel magnitude
@@ -117,13 +118,16 @@ void track_sequence(benchmark::State& state, Pipeline pipeline) {
   rt::TrackerOptions options;
   options.observation = rt::ObservationMode::kEdge;
   options.half_width_px = kHalfWidth;
-  options.verify_forces = pipeline == Pipeline::kOursWithForces;
+  const bool forces =
+      pipeline == Pipeline::kOursWithForces || pipeline == Pipeline::kOursWithForcesNested;
+  options.verify_forces = forces;
+  options.coupled_load_fit = pipeline != Pipeline::kOursWithForcesNested;
   if (pipeline == Pipeline::kPaper) {
     options.observation = rt::ObservationMode::kEdgeMap;
     options.dense_solve = true;
   }
   if (pipeline == Pipeline::kSnake) options.model = rt::TrackerModel::kSnake;
-  const bool ours = pipeline == Pipeline::kOurs || pipeline == Pipeline::kOursWithForces;
+  const bool ours = pipeline == Pipeline::kOurs || forces;
   const Sequence& seq = sequence();
   const int stride = kTruthElements / elements;  // tracker node i is fine node stride·i
   std::vector<double> micros;
@@ -132,9 +136,8 @@ void track_sequence(benchmark::State& state, Pipeline pipeline) {
   long allocations = 0, counted_frames = 0;
   double error_sum = 0.0, error_max = 0.0, iterations = 0.0, searches = 0.0;
   for (auto _ : state) {
-    rt::Tracker tracker(
-        cantilever(elements), options,
-        pipeline == Pipeline::kOursWithForces ? std::vector<int>{elements} : std::vector<int>{});
+    rt::Tracker tracker(cantilever(elements), options,
+                        forces ? std::vector<int>{elements} : std::vector<int>{});
     if (!tracker.valid()) {
       state.SkipWithError(tracker.error().c_str());
       return;
@@ -197,6 +200,11 @@ void BM_TrackFrame(benchmark::State& state) {
 void BM_TrackFrameWithForces(benchmark::State& state) {
   track_sequence(state, Pipeline::kOursWithForces);
 }
+// The same with the nested load fit (the equilibrium solved inside every Gauss–Newton iteration),
+// the alternative the coupled fit replaced: 16 elements only.
+void BM_TrackFrameWithForcesNestedFit(benchmark::State& state) {
+  track_sequence(state, Pipeline::kOursWithForcesNested);
+}
 void BM_PaperPipelineFrame(benchmark::State& state) {
   track_sequence(state, Pipeline::kPaper);
 }
@@ -209,6 +217,7 @@ BENCHMARK(BM_TrackFrameWithForces)
     ->RangeMultiplier(2)
     ->Range(8, 128)
     ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TrackFrameWithForcesNestedFit)->Arg(16)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_PaperPipelineFrame)->RangeMultiplier(2)->Range(8, 128)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SnakeFrame)->RangeMultiplier(2)->Range(8, 128)->Unit(benchmark::kMillisecond);
 

@@ -160,6 +160,10 @@ struct TrackerOptions {
   /// Load fit: sub-elements per element of the beam the loads are fitted on (its O(h²) error would
   /// otherwise read as a load error of a few per cent), ≥ 1.
   int load_fit_subdivisions = 4;
+  /// Load fit: solve the loads and the equilibrium together, one factorisation per iteration
+  /// (up to 2 max_load_fit_iterations), before the nested fit (an equilibrium solved to 1e-9
+  /// inside every iteration), which remains the fallback. Same loads at convergence.
+  bool coupled_load_fit = true;
 
   /// Empty when valid; otherwise one line naming the field, its value and the constraint.
   std::optional<std::string> validate() const;
@@ -281,6 +285,10 @@ class Tracker {
   double rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
   void verify(FrameSummary& summary);
   void fit_loads(FrameSummary& summary);
+  bool fit_loads_coupled();
+  bool fit_loads_nested();
+  bool load_fit_step(bool robust);
+  void load_fit_residual(const Eigen::VectorXd& u);
 
   common::BeamModel model_;
   TrackerOptions options_;
@@ -336,7 +344,9 @@ class Tracker {
   // Load fit, on the beam with every element subdivided.
   common::BeamModel fit_model_;
   common::StaticBeamSolver fit_solver_;
-  Eigen::VectorXd u_fit_, fit_loads_prev_, fit_rhs_, fit_residual_, fit_z_;
+  Eigen::VectorXd u_fit_, fit_loads_prev_, fit_rhs_, fit_residual_, fit_z_, fit_du_, fit_u_backup_;
+  Eigen::MatrixXd fit_columns_;  // K_T⁻¹E on the fit model's dofs, one column per load parameter
+  Eigen::VectorXd fit_q_backup_;
   Eigen::MatrixXd fit_jacobian_;           // 2n x (2 or 3)k: node displacements per load parameter
   Eigen::MatrixXd fit_weighted_jacobian_;  // W·J with the nodes' Tukey weights
   Eigen::VectorXd fit_change_;

@@ -72,8 +72,8 @@ TrackInit parse_track_init(const nlohmann::json& doc, const std::string& path) {
         {"max_newton_iterations", &t.max_newton_iterations},
         {"verify_load_steps", &t.verify_load_steps},
         {"max_load_fit_iterations", &t.max_load_fit_iterations}};
-    std::vector<std::string> keys = {"predict", "verify_forces", "polarity", "observe_ends",
-                                     "fit_moments"};
+    std::vector<std::string> keys = {"predict",      "verify_forces", "polarity",
+                                     "observe_ends", "fit_moments",   "coupled_load_fit"};
     for (const auto& kv : reals) keys.push_back(kv.first);
     for (const auto& kv : integers) keys.push_back(kv.first);
     o.expect_keys(keys);
@@ -86,6 +86,7 @@ TrackInit parse_track_init(const nlohmann::json& doc, const std::string& path) {
     if (o.has("predict")) t.predict = o.at("predict").boolean();
     if (o.has("observe_ends")) t.observe_ends = o.at("observe_ends").boolean();
     if (o.has("fit_moments")) t.fit_moments = o.at("fit_moments").boolean();
+    if (o.has("coupled_load_fit")) t.coupled_load_fit = o.at("coupled_load_fit").boolean();
     if (o.has("verify_forces")) t.verify_forces = o.at("verify_forces").boolean();
     if (o.has("polarity")) {
       const std::string p = o.at("polarity").string();
