@@ -1143,6 +1143,27 @@ bool Tracker::fit_loads_coupled() {
   const int per_node = options_.fit_moments ? 3 : 2;
   const auto& fixed = fit_model_.fixed_mask();
   const int fit_dofs = fit_model_.num_dofs();
+  // Start from the tracked shape: the last frame's state moved by this frame's change at the
+  // tracked nodes, interpolated linearly between them (the coupled iteration needs no
+  // equilibrium to start from, and the answer lies within the fit's misfit of this shape).
+  for (int i = 0; i < n; ++i) {
+    fit_residual_.segment<3>(3 * i) = u_.segment<3>(3 * i) - u_fit_.segment<3>(3 * parts * i);
+  }
+  for (int i = 0; i + 1 < n; ++i) {
+    for (int k = 0; k < parts; ++k) {
+      const double a = static_cast<double>(k) / parts;
+      for (int c = 0; c < 3; ++c) {
+        const int d = 3 * (parts * i + k) + c;
+        if (!fixed[d]) {
+          u_fit_[d] += (1.0 - a) * fit_residual_[3 * i + c] + a * fit_residual_[3 * (i + 1) + c];
+        }
+      }
+    }
+  }
+  for (int c = 0; c < 3; ++c) {
+    const int d = 3 * parts * (n - 1) + c;
+    if (!fixed[d]) u_fit_[d] += fit_residual_[3 * (n - 1) + c];
+  }
   for (int it = 0; it < 2 * options_.max_load_fit_iterations; ++it) {
     Eigen::Ref<Eigen::VectorXd> r(fit_rhs_);
     fit_model_.evaluate(u_fit_, nullptr, &r, &fit_tangent_);
