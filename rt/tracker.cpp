@@ -29,33 +29,6 @@ common::BeamDescription verification_description(const common::BeamDescription& 
   return d;
 }
 
-// The load fit's model: every element split into `parts` straight sub-elements, so that its
-// discretisation error (O(h²)) does not masquerade as a load. Tracker node k is fine node k·parts.
-common::BeamDescription subdivided_description(const common::BeamDescription& beam, int parts) {
-  const common::BeamModel probe(beam);
-  if (!probe.valid() || parts <= 1) return beam;
-  const Eigen::Index n = beam.rest_positions.cols();
-  common::BeamDescription d;
-  d.rest_positions.resize(2, (n - 1) * parts + 1);
-  for (Eigen::Index e = 0; e + 1 < n; ++e) {
-    for (int k = 0; k < parts; ++k) {
-      d.rest_positions.col(e * parts + k) =
-          beam.rest_positions.col(e) +
-          (double(k) / parts) * (beam.rest_positions.col(e + 1) - beam.rest_positions.col(e));
-      d.sections.push_back(beam.sections[e]);
-      if (!beam.prestress.empty()) d.prestress.push_back(beam.prestress[e]);
-    }
-  }
-  d.rest_positions.col((n - 1) * parts) = beam.rest_positions.col(n - 1);
-  if (!beam.fixed.empty()) {
-    d.fixed.assign(3 * d.rest_positions.cols(), 0);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      for (int a = 0; a < 3; ++a) d.fixed[3 * i * parts + a] = beam.fixed[3 * i + a];
-    }
-  }
-  return d;
-}
-
 common::StaticSolverOptions direct_solver_options() {
   common::StaticSolverOptions o;
   o.load_steps = 1;
@@ -144,6 +117,9 @@ std::optional<std::string> TrackerOptions::validate() const {
   if (!(snake_bend_weight >= 0.0)) {
     return field_error("snake_bend_weight", snake_bend_weight, "must be >= 0");
   }
+  if (load_fit_subdivisions < 1) {
+    return field_error("load_fit_subdivisions", load_fit_subdivisions, "must be >= 1");
+  }
   if (max_load_fit_iterations < 1) {
     return field_error("max_load_fit_iterations", max_load_fit_iterations, "must be >= 1");
   }
@@ -170,8 +146,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
       verify_solver_(verify_model_, solver_options(options.verify_load_steps)),
       verify_solver_warm_(verify_model_, solver_options(8)),
       verify_solver_direct_(verify_model_, direct_solver_options()),
-      fit_model_(subdivided_description(beam, std::max(1, options.load_fit_subdivisions))),
-      fit_solver_(fit_model_, solver_options(1)) {
+      fit_points_(load_nodes_.size()) {
   if (!model_.valid()) {
     error_ = model_.error();
     return;
@@ -298,10 +273,6 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
         &verify_previous_forces_, &verify_backup_, &u_searched_, &p_next_}) {
     v->setZero(dofs);
   }
-  for (Eigen::VectorXd* v :
-       {&u_fit_, &fit_loads_prev_, &fit_rhs_, &fit_z_, &fit_du_, &fit_u_backup_}) {
-    v->setZero(fit_model_.num_dofs());
-  }
   tangent_.resize(n);
   ldlt_.resize(n);
   if (options_.dense_solve) {
@@ -314,22 +285,23 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     snake_fixed_ = model_.fixed_mask();
     for (int i = 0; i < n; ++i) snake_fixed_[3 * i + 2] = 1;  // a polyline has no rotations
   }
-  const int params = (options_.fit_moments ? 3 : 2) * static_cast<int>(load_nodes_.size());
-  fit_residual_.setZero(3 * n);
-  fit_change_.setZero(3 * n);
-  fit_jacobian_.setZero(3 * n, params);
-  fit_weighted_jacobian_.setZero(3 * n, params);
   if (static_cast<int>(sorted_.size()) < n) sorted_.resize(n);
-  fit_rotation_scale_ = model_.total_length() / model_.num_elements();
-  fit_q_.setZero(params);
-  fit_q_backup_.setZero(params);
-  fit_columns_.setZero(fit_model_.num_dofs(), params);
-  fit_dq_.setZero(params);
-  fit_g_.setZero(params);
-  fit_normal_.setZero(params, params);
-  fit_ldlt_ = Eigen::LDLT<Eigen::MatrixXd>(params);
-  fit_tangent_.resize(fit_model_.num_nodes());
-  fit_factor_.resize(fit_model_.num_nodes());
+  if (!load_nodes_.empty()) {
+    LoadFitOptions lo;
+    lo.max_iterations = options_.max_load_fit_iterations;
+    lo.fit_moments = options_.fit_moments;
+    lo.subdivisions = options_.load_fit_subdivisions;
+    lo.coupled = options_.coupled_load_fit;
+    lo.max_load_points = static_cast<int>(load_nodes_.size());
+    load_fit_.emplace(beam, lo);
+    if (!load_fit_->valid()) {
+      error_ = load_fit_->error();
+      return;
+    }
+    for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
+      fit_points_[k] = load_fit_->fine_node(load_nodes_[k]);
+    }
+  }
 }
 
 void Tracker::reset_motion() noexcept {
@@ -1087,218 +1059,17 @@ void Tracker::verify(FrameSummary& summary) {
   verify_have_previous_ = true;
 }
 
-// The robust Gauss–Newton step on the loads from fit_jacobian_ (tracked nodes per load parameter)
-// and fit_residual_ (tracked nodes' misfit at dq = 0) into fit_dq_. Tukey weights per node (robust
-// to a local kink that clutter or an occluder left in the tracked shape), scale 1.4826·median with
-// a floor of 0.05 px. The constant is tighter than the image term's: a load must explain the whole
-// shape, and a kink of 0.2–0.3 px at a clutter crossing otherwise moves a thin beam's tip load by
-// ~2 % (measured: 5.5 % → 4.5 %). Components the shape barely determines (an axial force on a
-// nearly straight beam) are held by a small ridge. False when the step is not finite.
-bool Tracker::load_fit_step(bool robust) {
-  const int n = model_.num_nodes();
-  const int params = static_cast<int>(fit_q_.size());
-  constexpr double kLoadFitTukey = 2.5;
-  if (!robust) fit_weighted_jacobian_ = fit_jacobian_;
-  int count = 0;
-  for (int i = 0; i < n; ++i)
-    sorted_[count++] = static_cast<float>(fit_residual_.segment<3>(3 * i).norm());
-  const double cut =
-      kLoadFitTukey *
-      std::max(1.4826 * double(detail::kth_smallest(sorted_.data(), count, count / 2)), 0.05);
-  for (int i = 0; i < n && robust; ++i) {
-    const double r = fit_residual_.segment<3>(3 * i).norm() / cut;
-    const double w = r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0;
-    fit_weighted_jacobian_.middleRows<3>(3 * i) = w * fit_jacobian_.middleRows<3>(3 * i);
-  }
-  fit_normal_.noalias() = fit_weighted_jacobian_.transpose() * fit_jacobian_;
-  fit_g_.noalias() = fit_weighted_jacobian_.transpose() * fit_residual_;
-  const double ridge = 1e-6 * fit_normal_.diagonal().maxCoeff() + 1e-300;
-  for (int j = 0; j < params; ++j) fit_normal_(j, j) += ridge;
-  fit_ldlt_.compute(fit_normal_);
-  if (fit_ldlt_.info() != Eigen::Success) return false;
-  fit_dq_ = -fit_g_;
-  fit_ldlt_.solveInPlace(fit_dq_);
-  return fit_dq_.allFinite();
-}
-
-// The misfit of the fit model's state u (fit dofs) at the tracked nodes into fit_residual_.
-void Tracker::load_fit_residual(const Eigen::VectorXd& u) {
-  const int parts = std::max(1, options_.load_fit_subdivisions);
-  for (int i = 0; i < model_.num_nodes(); ++i) {
-    fit_residual_.segment<2>(3 * i) = u.segment<2>(3 * parts * i) - u_.segment<2>(3 * i);
-    fit_residual_[3 * i + 2] = fit_rotation_scale_ * (u[3 * parts * i + 2] - u_[3 * i + 2]);
-  }
-}
-
-bool Tracker::fit_loads_coupled() {
-  // Gauss–Newton on the loads q and the fit model's state u together (a sequential quadratic
-  // programming step): the equilibrium p(u) = E q is linearised at u, K_T du = E dq − r with
-  // r = p(u) − E q, so du = du₀ + K_T⁻¹E dq (du₀ = −K_T⁻¹ r, the Newton correction at fixed
-  // loads), and dq minimises the tracked nodes' misfit of u + du. One factorisation per
-  // iteration, where the nested fit (fit_loads_nested) solves the equilibrium to 1e-9 inside
-  // every iteration. At convergence r = 0 and the same normal equations hold: the same loads.
-  const int n = model_.num_nodes();
-  const int parts = std::max(1, options_.load_fit_subdivisions);
-  const int params = static_cast<int>(fit_q_.size());
-  const int per_node = options_.fit_moments ? 3 : 2;
-  const auto& fixed = fit_model_.fixed_mask();
-  const int fit_dofs = fit_model_.num_dofs();
-  // Start from the tracked shape: the last frame's state moved by this frame's change at the
-  // tracked nodes, interpolated linearly between them (the coupled iteration needs no
-  // equilibrium to start from, and the answer lies within the fit's misfit of this shape).
-  for (int i = 0; i < n; ++i) {
-    fit_residual_.segment<3>(3 * i) = u_.segment<3>(3 * i) - u_fit_.segment<3>(3 * parts * i);
-  }
-  for (int i = 0; i + 1 < n; ++i) {
-    for (int k = 0; k < parts; ++k) {
-      const double a = static_cast<double>(k) / parts;
-      for (int c = 0; c < 3; ++c) {
-        const int d = 3 * (parts * i + k) + c;
-        if (!fixed[d]) {
-          u_fit_[d] += (1.0 - a) * fit_residual_[3 * i + c] + a * fit_residual_[3 * (i + 1) + c];
-        }
-      }
-    }
-  }
-  for (int c = 0; c < 3; ++c) {
-    const int d = 3 * parts * (n - 1) + c;
-    if (!fixed[d]) u_fit_[d] += fit_residual_[3 * (n - 1) + c];
-  }
-  for (int it = 0; it < 2 * options_.max_load_fit_iterations; ++it) {
-    Eigen::Ref<Eigen::VectorXd> r(fit_rhs_);
-    fit_model_.evaluate(u_fit_, nullptr, &r, &fit_tangent_);
-    for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
-      fit_rhs_.segment(3 * parts * load_nodes_[k], per_node) -=
-          fit_q_.segment(per_node * k, per_node);
-    }
-    for (int d = 0; d < fit_dofs; ++d) {
-      if (fixed[d]) fit_rhs_[d] = 0.0;
-    }
-    fit_tangent_.apply_fixed_dofs(fixed);
-    if (!fit_factor_.factor(fit_tangent_)) return false;
-    fit_du_ = -fit_rhs_;
-    fit_factor_.solve_in_place(fit_du_);
-    for (int j = 0; j < params; ++j) {
-      auto z = fit_columns_.col(j);
-      z.setZero();
-      const int dof = 3 * parts * load_nodes_[j / per_node] + j % per_node;
-      if (!fixed[dof]) z[dof] = 1.0;
-      fit_factor_.solve_in_place(z);
-      for (int i = 0; i < n; ++i) {
-        fit_jacobian_.block<2, 1>(3 * i, j) = z.segment<2>(3 * parts * i);
-        fit_jacobian_(3 * i + 2, j) = fit_rotation_scale_ * z[3 * parts * i + 2];
-      }
-    }
-    fit_z_ = u_fit_ + fit_du_;
-    load_fit_residual(fit_z_);
-    double newton = 0.0;
-    for (int d = 0; d < fit_dofs; d += 3) {
-      newton = std::max(newton, fit_du_.segment<2>(d).cwiseAbs().maxCoeff());
-    }
-    // The Tukey weights are read off the linearised misfit only where the linearisation is good
-    // (the Newton correction below 0.05 px); before, plain least squares. Weighting from the
-    // start locked onto a fit that left most nodes out (thin cantilever, frame 25: 1.0 px RMS and
-    // 7.7 % load error, where the nested fit has 0.22 px and 2.5 %; 0.01 px gives the same).
-    constexpr double kRobustBelowPx = 0.05;
-    if (!load_fit_step(newton < kRobustBelowPx)) return false;
-    fit_du_.noalias() += fit_columns_ * fit_dq_;
-    double change = 0.0;
-    for (int d = 0; d < fit_dofs; d += 3) {
-      change = std::max(change, fit_du_.segment<2>(d).cwiseAbs().maxCoeff());
-    }
-    if (!std::isfinite(change)) return false;
-    // Each step may move a node by at most 20 px.
-    if (change > 20.0) {
-      fit_du_ *= 20.0 / change;
-      fit_dq_ *= 20.0 / change;
-    }
-    u_fit_ += fit_du_;
-    fit_q_ += fit_dq_;
-    if (change < 1e-3) {
-      load_fit_residual(u_fit_);
-      fit_loads_prev_.setZero();
-      for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
-        fit_loads_prev_.segment(3 * parts * load_nodes_[k], per_node) =
-            fit_q_.segment(per_node * k, per_node);
-      }
-      return true;
-    }
-  }
-  return false;
-}
-
-bool Tracker::fit_loads_nested() {
-  // Gauss–Newton over the loads q at the load nodes: minimise Σ_i |x_i(u(q)) − x_i(u_T)|², u(q)
-  // the equilibrium under those loads alone, ∂u/∂q = K_T⁻¹ E (E scatters q to the dofs), solved on
-  // a subdivided copy of the beam; each step may move a node by at most 20 px.
-  const int n = model_.num_nodes();
-  const int parts = std::max(1, options_.load_fit_subdivisions);
-  const int params = static_cast<int>(fit_q_.size());
-  const int per_node = options_.fit_moments ? 3 : 2;
-  const auto& fixed = fit_model_.fixed_mask();
-  bool ok = false;
-  for (int it = 0; it < options_.max_load_fit_iterations; ++it) {
-    fit_rhs_.setZero();
-    for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
-      fit_rhs_.segment(3 * parts * load_nodes_[k], per_node) =
-          fit_q_.segment(per_node * k, per_node);
-    }
-    const common::StaticSolverSummary s = fit_solver_.solve(fit_rhs_, u_fit_, &fit_loads_prev_);
-    if (!s.converged()) {
-      // Start over from the unloaded reference next time.
-      u_fit_.setZero();
-      fit_loads_prev_.setZero();
-      fit_q_.setZero();
-      return false;
-    }
-    fit_loads_prev_ = fit_rhs_;
-    load_fit_residual(u_fit_);
-    if (ok) break;  // the previous update was negligible: this equilibrium is the answer
-
-    fit_model_.evaluate(u_fit_, nullptr, nullptr, &fit_tangent_);
-    fit_tangent_.apply_fixed_dofs(fixed);
-    if (!fit_factor_.factor(fit_tangent_)) return false;
-    for (int j = 0; j < params; ++j) {
-      fit_z_.setZero();
-      const int dof = 3 * parts * load_nodes_[j / per_node] + j % per_node;
-      if (!fixed[dof]) fit_z_[dof] = 1.0;
-      fit_factor_.solve_in_place(fit_z_);
-      for (int i = 0; i < n; ++i) {
-        fit_jacobian_.block<2, 1>(3 * i, j) = fit_z_.segment<2>(3 * parts * i);
-        fit_jacobian_(3 * i + 2, j) = fit_rotation_scale_ * fit_z_[3 * parts * i + 2];
-      }
-    }
-    if (!load_fit_step(true)) return false;
-    fit_change_.noalias() = fit_jacobian_ * fit_dq_;
-    const double change = fit_change_.cwiseAbs().maxCoeff();
-    if (change > 20.0) fit_dq_ *= 20.0 / change;
-    fit_q_ += fit_dq_;
-    ok = change < 1e-3;
-  }
-  return ok;
-}
-
 void Tracker::fit_loads(FrameSummary& summary) {
-  // The coupled fit first (one factorisation per iteration); where it does not converge (a large
-  // change of shape from the last frame's loads), the nested fit from where the coupled one began.
-  const int n = model_.num_nodes();
+  const LoadFitSummary s =
+      load_fit_->fit(u_, fit_points_.data(), static_cast<int>(fit_points_.size()));
   const int per_node = options_.fit_moments ? 3 : 2;
-  fit_u_backup_ = u_fit_;
-  fit_q_backup_ = fit_q_;
-  bool ok = options_.coupled_load_fit && fit_loads_coupled();
-  if (!ok) {
-    if (options_.coupled_load_fit) {
-      u_fit_ = fit_u_backup_;
-      fit_q_ = fit_q_backup_;
-    }
-    ok = fit_loads_nested();
-  }
-  summary.loads_fitted = ok;
+  summary.loads_fitted = s.converged;
   fitted_loads_.setZero();
   for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
-    fitted_loads_.segment(3 * load_nodes_[k], per_node) = fit_q_.segment(per_node * k, per_node);
+    fitted_loads_.segment(3 * load_nodes_[k], per_node) =
+        load_fit_->loads().segment(per_node * static_cast<Eigen::Index>(k), per_node);
   }
-  summary.load_fit_rms_px = std::sqrt(fit_residual_.squaredNorm() / n);
+  summary.load_fit_rms_px = s.rms_px;
 }
 
 }  // namespace sinew::rt

@@ -23,6 +23,7 @@
 #include "common/beam/block_tridiagonal.hpp"
 #include "common/beam/static_solver.hpp"
 #include "rt/centreline.hpp"
+#include "rt/load_fit.hpp"
 #include "rt/observation.hpp"
 
 namespace sinew::rt {
@@ -157,8 +158,8 @@ struct TrackerOptions {
   /// Load fit: also fit a moment at each load node. Off by default: a contact (a whisker touching
   /// a pole, a pushed tip) transmits a force, and a free moment trades off against the force.
   bool fit_moments = false;
-  /// Load fit: sub-elements per element of the beam the loads are fitted on (its O(h²) error would
-  /// otherwise read as a load error of a few per cent), ≥ 1.
+  /// Load fit (rt/load_fit.hpp): sub-elements per element of the beam the loads are fitted on
+  /// (its O(h²) error would otherwise read as a load error of a few per cent), ≥ 1.
   int load_fit_subdivisions = 4;
   /// Load fit: solve the loads and the equilibrium together, one factorisation per iteration
   /// (up to 2 max_load_fit_iterations), before the nested fit (an equilibrium solved to 1e-9
@@ -285,10 +286,6 @@ class Tracker {
   double rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
   void verify(FrameSummary& summary);
   void fit_loads(FrameSummary& summary);
-  bool fit_loads_coupled();
-  bool fit_loads_nested();
-  bool load_fit_step(bool robust);
-  void load_fit_residual(const Eigen::VectorXd& u);
 
   common::BeamModel model_;
   TrackerOptions options_;
@@ -342,20 +339,10 @@ class Tracker {
   bool verify_have_previous_ = false;
 
   // Load fit, on the beam with every element subdivided.
-  common::BeamModel fit_model_;
-  common::StaticBeamSolver fit_solver_;
-  Eigen::VectorXd u_fit_, fit_loads_prev_, fit_rhs_, fit_residual_, fit_z_, fit_du_, fit_u_backup_;
-  Eigen::MatrixXd fit_columns_;  // K_T⁻¹E on the fit model's dofs, one column per load parameter
-  Eigen::VectorXd fit_q_backup_;
-  Eigen::MatrixXd fit_jacobian_;           // 2n x (2 or 3)k: node displacements per load parameter
-  Eigen::MatrixXd fit_weighted_jacobian_;  // W·J with the nodes' Tukey weights
-  Eigen::VectorXd fit_change_;
-  double fit_rotation_scale_ = 1.0;  // rotations enter the fit as arc lengths over one element
-  Eigen::VectorXd fit_q_, fit_dq_, fit_g_;
-  Eigen::MatrixXd fit_normal_;
-  Eigen::LDLT<Eigen::MatrixXd> fit_ldlt_;
-  common::BlockTridiagonal fit_tangent_;
-  common::BlockTridiagonalLdlt fit_factor_;
+  // The load fit at the load nodes (rt/load_fit.hpp), when there are any; its load points are
+  // the load nodes on its subdivided beam.
+  std::optional<LoadFit> load_fit_;
+  std::vector<int> fit_points_;
 };
 
 }  // namespace sinew::rt

@@ -1,0 +1,106 @@
+#pragma once
+/// The loads at a few points of a beam that best explain a tracked shape: the well-posed inverse
+/// problem beside the per-node forces p(u), which explain any shape and so amplify its noise.
+///
+/// Minimises Σ_i w_i |x_i(u(q)) − x̂_i|² (positions, and rotations as arcs over one element) over
+/// the loads q at the load points, u(q) the equilibrium of a subdivided copy of the beam under q
+/// alone (its O(h²) error would otherwise read as a load error of a few per cent), w_i Tukey
+/// weights (a local kink that clutter or an occluder left in the tracked shape does not move the
+/// loads). Load points are nodes of the subdivided beam, chosen per call, so a contact point may
+/// move along the beam. The beam's fixed dofs are its supports; they take the tracked state's
+/// values (a clamped base that moves with the face).
+///
+/// Two methods, the same loads at convergence:
+/// - coupled (default): Gauss–Newton on q and u together: the equilibrium p(u) = E q is linearised
+///   at u, so du = −K_T⁻¹r + K_T⁻¹E dq (r = p(u) − E q), and dq minimises the misfit of u + du.
+///   One factorisation per iteration; it needs no equilibrium to start from and starts from the
+///   tracked shape.
+/// - nested (the fallback): Gauss–Newton over q with the equilibrium solved to 1e-8 inside every
+///   iteration (StaticBeamSolver), from the last call's state.
+/// All memory is sized at construction; fit() does not allocate.
+
+#include <Eigen/Core>
+#include <Eigen/Cholesky>
+#include <optional>
+#include <string>
+
+#include "common/beam/beam_model.hpp"
+#include "common/beam/block_tridiagonal.hpp"
+#include "common/beam/static_solver.hpp"
+
+namespace sinew::rt {
+
+struct LoadFitOptions {
+  /// Gauss–Newton iterations of the nested fit, ≥ 1; the coupled fit may take twice as many.
+  int max_iterations = 6;
+  /// Also fit a moment at each load point. A contact transmits a force, and a free moment trades
+  /// off against it.
+  bool fit_moments = false;
+  /// Sub-elements per element of the beam the loads are fitted on, ≥ 1.
+  int subdivisions = 4;
+  /// The coupled fit first (the nested one where it does not converge), or the nested one only.
+  bool coupled = true;
+  /// Most load points of one call, in [1, 64].
+  int max_load_points = 8;
+
+  std::optional<std::string> validate() const;
+};
+
+struct LoadFitSummary {
+  bool converged = false;  ///< a step moved no node by more than 1e-3 px
+  bool coupled = false;    ///< the coupled method gave the answer
+  int iterations = 0;      ///< Gauss–Newton iterations of the method that answered
+  double rms_px = 0.0;     ///< RMS misfit between the fitted equilibrium and the tracked nodes
+};
+
+class LoadFit {
+ public:
+  /// beam: the tracked beam (its rest shape, sections and fixed dofs; the fixed dofs must hold
+  /// it). Check valid().
+  LoadFit(const common::BeamDescription& beam, LoadFitOptions options);
+
+  bool valid() const { return error_.empty(); }
+  const std::string& error() const { return error_; }
+  const LoadFitOptions& options() const { return options_; }
+  /// The subdivided beam; load points are its nodes. Tracked node i is its node i·subdivisions.
+  const common::BeamModel& model() const { return model_; }
+  int fine_node(int tracked_node) const { return tracked_node * parts_; }
+
+  /// Fits loads at the subdivided beam's nodes points[0..count) to the tracked state `tracked`
+  /// (3 dofs per tracked node, Tracker::state()). Count in [1, max_load_points], nodes distinct
+  /// and in range (not checked here: the caller validates them once). No allocation.
+  LoadFitSummary fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, const int* points,
+                     int count) noexcept;
+  /// The fitted loads: (2 or 3) per load point of the last fit(), in its order.
+  Eigen::Ref<const Eigen::VectorXd> loads() const { return q_.head(params_); }
+  /// The fitted equilibrium state of the subdivided beam.
+  const Eigen::VectorXd& state() const { return u_; }
+  /// Forgets the last fit: the next starts from the unloaded beam.
+  void reset() noexcept;
+
+ private:
+  bool coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations);
+  bool nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations);
+  bool step(bool robust);
+  void residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const Eigen::VectorXd& u);
+  void scatter_loads(Eigen::VectorXd& f) const;
+  void take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked, Eigen::VectorXd& u) const;
+
+  LoadFitOptions options_;
+  std::string error_;
+  common::BeamModel model_;
+  common::StaticBeamSolver solver_;
+  int parts_ = 1, n_ = 0, per_point_ = 2, params_ = 0;
+  const int* points_ = nullptr;  // this call's load points
+  double rotation_scale_ = 1.0;  // rotations enter the fit as arc lengths over one element
+  Eigen::VectorXd u_, loads_prev_, rhs_, du_, z_, u_backup_;
+  Eigen::MatrixXd columns_;  // K_T⁻¹E, one column per load parameter
+  Eigen::VectorXd residual_, change_, q_, q_backup_, dq_, g_;
+  Eigen::MatrixXd jacobian_, weighted_jacobian_, normal_;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt_;
+  Eigen::VectorXf sorted_;
+  common::BlockTridiagonal tangent_;
+  common::BlockTridiagonalLdlt factor_;
+};
+
+}  // namespace sinew::rt
