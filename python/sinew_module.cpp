@@ -141,7 +141,7 @@ class PyWhiskers {
   PyWhiskers(const std::string& face, const std::string& redetect, double min_length_px,
              double mm_per_px, double young_modulus_gpa, double base_radius_um,
              double tip_radius_um, double length_mm, double axis_angle_deg,
-             std::pair<double, double> curvature_window, int moment_elements) {
+             std::pair<double, double> curvature_window, int moment_elements, int rest_frame) {
     rt::WhiskerSessionOptions o;
     o.detection.face = face_side(face);
     o.detection.min_length_px = min_length_px;
@@ -155,6 +155,7 @@ class PyWhiskers {
     o.readout.curvature_from_px = curvature_window.first;
     o.readout.curvature_to_px = curvature_window.second;
     o.readout.moment_elements = moment_elements;
+    o.rest_frame = rest_frame;
     if (auto err = o.validate()) throw py::value_error(*err);
     si_ = o.readout.physics.si();
     session_ = std::make_unique<rt::WhiskerSession>(o);
@@ -205,6 +206,13 @@ class PyWhiskers {
           d["contact_arc_length_px"] = sw.contact->arc_length_px;
           d["contact_point"] = xy(sw.contact->point);
         }
+      }
+      if (sw.contact_load) {
+        d["contact_force_model"] = xy(sw.contact_load->force);
+        d["contact_moment_model"] = sw.contact_load->moment;
+        d["contact_load_point"] = xy(sw.contact_load->point);
+        d["contact_load_rms_px"] = sw.contact_load->rms_px;
+        d["contact_load_converged"] = sw.contact_load->converged;
       }
       whiskers.append(d);
     }
@@ -311,23 +319,24 @@ identities, their mechanics and their contacts: sinew-track --whiskers, frame by
 
 Whiskers(face='auto', redetect='every', min_length_px=40, mm_per_px=0, young_modulus_gpa=3.34,
 base_radius_um=0, tip_radius_um=0, length_mm=0, axis_angle_deg=0, curvature_window=(0, 30),
-moment_elements=3): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
+moment_elements=3, rest_frame=0): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
 the radii, curvature and moment are in pixel model units.
 )doc")
       .def(py::init<const std::string&, const std::string&, double, double, double, double, double,
-                    double, double, std::pair<double, double>, int>(),
+                    double, double, std::pair<double, double>, int, int>(),
            py::arg("face") = "auto", py::arg("redetect") = "every", py::arg("min_length_px") = 40.0,
            py::arg("mm_per_px") = 0.0, py::arg("young_modulus_gpa") = 3.34,
            py::arg("base_radius_um") = 0.0, py::arg("tip_radius_um") = 0.0,
            py::arg("length_mm") = 0.0, py::arg("axis_angle_deg") = 0.0,
            py::arg("curvature_window") = std::pair<double, double>(0.0, 30.0),
-           py::arg("moment_elements") = 3)
+           py::arg("moment_elements") = 3, py::arg("rest_frame") = 0)
       .def("track", &PyWhiskers::track, py::arg("frame"), R"doc(
 Processes one grey frame (2-D uint8 numpy array, read in place): detection on the first, then
 tracking, detection again and association (redetect), read-out and contact. Returns a dict with
 the keys of sinew-track --whiskers' JSON lines: frame, latency_us (tracking only), whiskers (a list
 of dicts: id, status, nodes (n x 3), follicle, tip, length_px, inlier_fraction, and for whiskers
-tracked ok base_angle_deg, curvature, delta_curvature, m0 and contact), redetect.
+tracked ok base_angle_deg, curvature, delta_curvature, m0 and contact; in contact after the rest
+frame, the contact load: contact_force_model, contact_moment_model), redetect.
 )doc")
       .def_property_readonly("detection", &PyWhiskers::detection,
                              "The first frame's detection (None before it): face, backlight, "

@@ -113,9 +113,29 @@ void LoadFit::reset() noexcept {
   q_.setZero();
 }
 
-void LoadFit::scatter_loads(Eigen::VectorXd& f) const {
-  for (int k = 0; k * per_point_ < params_; ++k) {
-    f.segment(3 * points_[k], per_point_) = q_.segment(per_point_ * k, per_point_);
+void LoadFit::add_loads(Eigen::VectorXd& f, double sign) const {
+  for (int k = 0; k * pp_ < params_; ++k) {
+    if (directions_) {
+      const Eigen::Vector2d d(directions_[2 * k], directions_[2 * k + 1]);
+      f.segment<2>(3 * points_[k]) += sign * q_[k] * d;
+    } else {
+      f.segment(3 * points_[k], pp_) += sign * q_.segment(pp_ * k, pp_);
+    }
+  }
+}
+
+void LoadFit::unit_load(int j, Eigen::Ref<Eigen::VectorXd> z) const {
+  const auto& fixed = model_.fixed_mask();
+  z.setZero();
+  const int k = j / pp_;
+  if (directions_) {
+    for (int c = 0; c < 2; ++c) {
+      const int dof = 3 * points_[k] + c;
+      if (!fixed[dof]) z[dof] = directions_[2 * k + c];
+    }
+  } else {
+    const int dof = 3 * points_[k] + j % pp_;
+    if (!fixed[dof]) z[dof] = 1.0;
   }
 }
 
@@ -150,7 +170,8 @@ bool LoadFit::step(bool robust) {
   auto WJ = weighted_jacobian_.leftCols(p);
   if (robust) {
     constexpr double kLoadFitTukey = 2.5;
-    for (int i = 0; i < n_; ++i) sorted_[i] = static_cast<float>(residual_.segment<3>(3 * i).norm());
+    for (int i = 0; i < n_; ++i)
+      sorted_[i] = static_cast<float>(residual_.segment<3>(3 * i).norm());
     const double cut =
         kLoadFitTukey *
         std::max(1.4826 * double(detail::kth_smallest(sorted_.data(), n_, n_ / 2)), 0.05);
@@ -204,9 +225,7 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     ++*iterations;
     Eigen::Ref<Eigen::VectorXd> r(rhs_);
     model_.evaluate(u_, nullptr, &r, &tangent_);
-    for (int k = 0; k * per_point_ < p; ++k) {
-      rhs_.segment(3 * points_[k], per_point_) -= q_.segment(per_point_ * k, per_point_);
-    }
+    add_loads(rhs_, -1.0);
     for (int d = 0; d < dofs; ++d) {
       if (fixed[d]) rhs_[d] = 0.0;
     }
@@ -216,9 +235,7 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     factor_.solve_in_place(du_);
     for (int j = 0; j < p; ++j) {
       auto z = columns_.col(j);
-      z.setZero();
-      const int dof = 3 * points_[j / per_point_] + j % per_point_;
-      if (!fixed[dof]) z[dof] = 1.0;
+      unit_load(j, z);
       factor_.solve_in_place(z);
       for (int i = 0; i < n_; ++i) {
         jacobian_.block<2, 1>(3 * i, j) = z.segment<2>(3 * parts_ * i);
@@ -228,7 +245,8 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     z_ = u_ + du_;
     residual(tracked, z_);
     double newton = 0.0;
-    for (int d = 0; d < dofs; d += 3) newton = std::max(newton, du_.segment<2>(d).cwiseAbs().maxCoeff());
+    for (int d = 0; d < dofs; d += 3)
+      newton = std::max(newton, du_.segment<2>(d).cwiseAbs().maxCoeff());
     // The Tukey weights are read off the linearised misfit only where the linearisation is good
     // (the Newton part of the step below 0.05 px); before, plain least squares. Weighting from
     // the start locked onto a fit that left most nodes out (thin cantilever, frame 25: 1.0 px RMS
@@ -237,7 +255,8 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     if (!step(newton < kRobustBelowPx)) return false;
     du_.noalias() += columns_.leftCols(p) * dq_.head(p);
     double change = 0.0;
-    for (int d = 0; d < dofs; d += 3) change = std::max(change, du_.segment<2>(d).cwiseAbs().maxCoeff());
+    for (int d = 0; d < dofs; d += 3)
+      change = std::max(change, du_.segment<2>(d).cwiseAbs().maxCoeff());
     if (!std::isfinite(change)) return false;
     if (change > kMaxStepPx) {
       du_ *= kMaxStepPx / change;
@@ -248,7 +267,7 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     if (change < kConvergedPx) {
       residual(tracked, u_);
       loads_prev_.setZero();
-      scatter_loads(loads_prev_);
+      add_loads(loads_prev_, 1.0);
       return true;
     }
   }
@@ -262,7 +281,7 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
   for (int it = 0; it < options_.max_iterations; ++it) {
     ++*iterations;
     rhs_.setZero();
-    scatter_loads(rhs_);
+    add_loads(rhs_, 1.0);
     const common::StaticSolverSummary s = solver_.solve(rhs_, u_, &loads_prev_);
     if (!s.converged()) {
       // Start over from the unloaded reference next time.
@@ -277,9 +296,7 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
     tangent_.apply_fixed_dofs(fixed);
     if (!factor_.factor(tangent_)) return false;
     for (int j = 0; j < p; ++j) {
-      z_.setZero();
-      const int dof = 3 * points_[j / per_point_] + j % per_point_;
-      if (!fixed[dof]) z_[dof] = 1.0;
+      unit_load(j, z_);
       factor_.solve_in_place(z_);
       for (int i = 0; i < n_; ++i) {
         jacobian_.block<2, 1>(3 * i, j) = z_.segment<2>(3 * parts_ * i);
@@ -297,10 +314,12 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
 }
 
 LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, const int* points,
-                            int count) noexcept {
+                            int count, const double* directions) noexcept {
   LoadFitSummary summary;
   points_ = points;
-  params_ = per_point_ * std::clamp(count, 0, options_.max_load_points);
+  directions_ = directions;
+  pp_ = directions ? 1 : per_point_;
+  params_ = pp_ * std::clamp(count, 0, options_.max_load_points);
   if (params_ == 0) return summary;
   u_backup_ = u_;
   q_backup_ = q_;

@@ -19,8 +19,8 @@
 ///   iteration (StaticBeamSolver), from the last call's state.
 /// All memory is sized at construction; fit() does not allocate.
 
-#include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 
@@ -68,10 +68,15 @@ class LoadFit {
 
   /// Fits loads at the subdivided beam's nodes points[0..count) to the tracked state `tracked`
   /// (3 dofs per tracked node, Tracker::state()). Count in [1, max_load_points], nodes distinct
-  /// and in range (not checked here: the caller validates them once). No allocation.
-  LoadFitSummary fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, const int* points,
-                     int count) noexcept;
-  /// The fitted loads: (2 or 3) per load point of the last fit(), in its order.
+  /// and in range (not checked here: the caller validates them once). With `directions` (2 per
+  /// point, unit vectors), each point carries a force along its direction only, one parameter
+  /// (a frictionless contact pushes along the normal: the axial part of a point force barely
+  /// shows in the shape, and left free it wanders and corrupts the rest). No allocation while
+  /// the number of parameters stays the same from call to call.
+  LoadFitSummary fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, const int* points, int count,
+                     const double* directions = nullptr) noexcept;
+  /// The fitted loads: (2 or 3, or 1 with directions) per load point of the last fit(), in its
+  /// order.
   Eigen::Ref<const Eigen::VectorXd> loads() const { return q_.head(params_); }
   /// The fitted equilibrium state of the subdivided beam.
   const Eigen::VectorXd& state() const { return u_; }
@@ -83,7 +88,10 @@ class LoadFit {
   bool nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations);
   bool step(bool robust);
   void residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const Eigen::VectorXd& u);
-  void scatter_loads(Eigen::VectorXd& f) const;
+  // f += sign · E q: this call's loads at their dofs.
+  void add_loads(Eigen::VectorXd& f, double sign) const;
+  // z = E e_j: the unit load of parameter j, zero on fixed dofs.
+  void unit_load(int j, Eigen::Ref<Eigen::VectorXd> z) const;
   void take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked, Eigen::VectorXd& u) const;
 
   LoadFitOptions options_;
@@ -91,8 +99,10 @@ class LoadFit {
   common::BeamModel model_;
   common::StaticBeamSolver solver_;
   int parts_ = 1, n_ = 0, per_point_ = 2, params_ = 0;
-  const int* points_ = nullptr;  // this call's load points
-  double rotation_scale_ = 1.0;  // rotations enter the fit as arc lengths over one element
+  const int* points_ = nullptr;         // this call's load points
+  const double* directions_ = nullptr;  // and their force directions (null: free)
+  int pp_ = 2;                          // parameters per load point in this call
+  double rotation_scale_ = 1.0;         // rotations enter the fit as arc lengths over one element
   Eigen::VectorXd u_, loads_prev_, rhs_, du_, z_, u_backup_;
   Eigen::MatrixXd columns_;  // K_T⁻¹E, one column per load parameter
   Eigen::VectorXd residual_, change_, q_, q_backup_, dq_, g_;

@@ -10,8 +10,12 @@ whisker-frame:
 - a swap: the tracked curve lies nearer (by mean distance) another true whisker than its own;
 - good: status "ok" and curve distance <= --max-curve-px.
 
-Prints the figures and exits 1 when any of --require-found, --require-good, --max-base-px or the
-no-swap rule fails (so a test can call it).
+With a contact load in the results (contact_moment_model, contact_force_model), its errors
+against the truth's contact force and that force's moment about the true follicle.
+
+Prints the figures and exits 1 when any of --require-found, --require-good, --max-base-px,
+--max-contact-arc-px, --max-contact-moment-error or the no-swap rule fails (so a test can call
+it).
 """
 import argparse
 import json
@@ -54,6 +58,9 @@ def main():
                     help="require every true contact frame reported touching (but for one frame "
                          "at each onset and offset), no touch reported more than one frame from a "
                          "true one, and the median contact point within this arc length")
+    ap.add_argument("--max-contact-moment-error", type=float, default=None,
+                    help="require the median relative error of the contact's moment about the "
+                         "follicle (sinew-track's contact load) at most this")
     ap.add_argument("--require-good", type=float, default=0.0,
                     help="fraction of whisker-frames that must be good")
     ap.add_argument("--max-base-px", type=float, default=float("inf"),
@@ -97,6 +104,8 @@ def main():
     total = good = swaps = ok = 0
     # Contact, per matched whisker: frames reported touching / truly touching, arc errors.
     said, true_contact, arc_errors = {}, {}, []
+    # The contact load against the truth's: the contact's moment about the follicle and the force.
+    moment_errors, force_errors = [], []
     curve, base, per_curve = [], {}, {}
     worst_swap = None
     for rec in results:
@@ -117,6 +126,14 @@ def main():
                     true_contact.setdefault(k, set()).add(rec["frame"])
                 if w["contact"] and tc:
                     arc_errors.append(abs(w["contact_arc_length_px"] - tc["arc_length_px"]))
+                if w.get("contact") and tc and "contact_moment_model" in w:
+                    force = np.asarray(tc["force"], dtype=float)
+                    arm = np.asarray(tc["point"], dtype=float) - tf[k]["follicle"]
+                    true_moment = arm[0] * force[1] - arm[1] * force[0]
+                    moment_errors.append(abs(w["contact_moment_model"] - true_moment)
+                                         / abs(true_moment))
+                    force_errors.append(float(np.linalg.norm(
+                        np.asarray(w["contact_force_model"]) - force) / np.linalg.norm(force)))
             if w["status"] == "ok":
                 ok += 1
                 curve.append(d_own)
@@ -170,7 +187,17 @@ def main():
               f"{spurious_c}; contact point error along the whisker median "
               f"{np.median(arc_errors) if arc_errors else float('nan'):.2f} px, max "
               f"{max(arc_errors) if arc_errors else float('nan'):.2f} px")
+    if moment_errors:
+        me, fe = np.asarray(moment_errors), np.asarray(force_errors)
+        print(f"contact load (frames in contact after the rest frame, {len(me)}): moment about "
+              f"the follicle error median {100 * np.median(me):.1f} %, 90th percentile "
+              f"{100 * np.percentile(me, 90):.1f} %, within 5 % on {int((me <= 0.05).sum())}; "
+              f"force error median {100 * np.median(fe):.1f} %, within 10 % on "
+              f"{int((fe <= 0.10).sum())}")
     failed = []
+    if args.max_contact_moment_error is not None:
+        if not moment_errors or np.median(moment_errors) > args.max_contact_moment_error:
+            failed.append("contact moment error")
     if args.max_contact_arc_px is not None:
         if missed_c or spurious_c:
             failed.append(f"contact: {missed_c} missed, {spurious_c} spurious")

@@ -1,6 +1,8 @@
 #include "rt/whisker/session.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "common/timing.hpp"
 
@@ -31,6 +33,9 @@ std::optional<std::string> WhiskerSessionOptions::validate() const {
   if (auto err = detection.validate()) return "detection: " + *err;
   if (auto err = tracker.validate()) return *err;
   if (auto err = readout.validate()) return "read-out: " + *err;
+  if (rest_frame < 0) {
+    return "options.rest_frame = " + std::to_string(rest_frame) + ": must be >= 0";
+  }
   return std::nullopt;
 }
 
@@ -60,12 +65,22 @@ std::string WhiskerSession::process(const ImageView& frame) {
     tracker_.emplace(std::move(tracker));
     readouts_ = std::move(readouts);
     whiskers_.resize(readouts_.size());
+    rest_taken_.assign(readouts_.size(), 0);
+    rest_state_.resize(readouts_.size());
+    contact_target_.resize(readouts_.size());
+    contact_fit_.resize(readouts_.size());
   }
   tracking_seconds_ = tracker_->track(frame);
-  // The first frame's fits are the whiskers at rest (Δκ and M0 are changes from them).
+  // The first frame's fits are the whiskers at rest (Δκ and M0 are changes from them) until the
+  // rest frame's.
   if (frames_ == 0) {
     for (int w = 0; w < tracker_->num_whiskers(); ++w) {
       readouts_[w].set_rest(tracker_->whisker(w).state());
+    }
+  }
+  if (frames_ >= options_.rest_frame) {
+    for (int w = 0; w < tracker_->num_whiskers(); ++w) {
+      if (!rest_taken_[w] && tracker_->result(w).status == FrameStatus::kOk) take_rest(w);
     }
   }
   ++frames_;
@@ -96,9 +111,56 @@ std::string WhiskerSession::process(const ImageView& frame) {
       out.contact = object_distance_.empty()
                         ? WhiskerContact{}
                         : find_contact(t, object_distance_.data(), frame.width, frame.height);
+      if (out.contact->touching && contact_fit_[w]) out.contact_load = fit_contact(w, *out.contact);
     }
   }
   return {};
+}
+
+void WhiskerSession::take_rest(int w) {
+  const Tracker& t = tracker_->whisker(w);
+  readouts_[w].set_rest(t.state());
+  rest_state_[w] = t.state();
+  contact_target_[w].setZero(t.state().size());
+  rest_taken_[w] = 1;
+  if (!options_.contact_load) return;
+  // The whisker's beam with the tracked rest shape as its reference, clamped at the follicle
+  // (which the fit holds at its tracked pose).
+  common::BeamDescription d = t.model().description();
+  d.rest_positions = t.model().current_positions(t.state());
+  d.fixed.clear();
+  d.clamp(0);
+  LoadFitOptions o;
+  o.max_load_points = 1;
+  contact_fit_[w].emplace(d, o);
+  if (!contact_fit_[w]->valid()) contact_fit_[w].reset();
+}
+
+WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const WhiskerContact& c) {
+  const Tracker& t = tracker_->whisker(w);
+  LoadFit& fit = *contact_fit_[w];
+  // Against the rest shape: displacements and rotations since the rest frame.
+  contact_target_[w] = t.state() - rest_state_[w];
+  // The fit's node nearest the contact, by arc length along the tracked whisker.
+  const int fine = fit.model().num_nodes();
+  const double length = tracker_->result(w).length_px;
+  const int point =
+      std::clamp(static_cast<int>(std::lround(c.arc_length_px / length * (fine - 1))), 1, fine - 1);
+  // A frictionless contact pushes along the whisker's normal there: the tracked element's.
+  const int elements = t.num_nodes() - 1;
+  const int e = std::clamp(point * elements / (fine - 1), 0, elements - 1);
+  const Eigen::Vector2d chord = (t.node_position(e + 1) - t.node_position(e)).normalized();
+  const double normal[2] = {-chord.y(), chord.x()};
+  const LoadFitSummary s = fit.fit(contact_target_[w], &point, 1, normal);
+  WhiskerSessionWhisker::ContactLoad load;
+  load.converged = s.converged;
+  load.rms_px = s.rms_px;
+  load.force = fit.loads()[0] * Eigen::Vector2d(normal[0], normal[1]);
+  const Eigen::Matrix2Xd& X = fit.model().rest_positions();
+  load.point = X.col(point) + fit.state().segment<2>(3 * point);
+  const Eigen::Vector2d arm = load.point - (X.col(0) + fit.state().segment<2>(0));
+  load.moment = arm.x() * load.force.y() - arm.y() * load.force.x();
+  return load;
 }
 
 }  // namespace sinew::rt

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "rt/load_fit.hpp"
 #include "rt/whisker/contact.hpp"
 #include "rt/whisker/detection.hpp"
 #include "rt/whisker/readout.hpp"
@@ -31,6 +32,13 @@ struct WhiskerSessionOptions {
   WhiskerTrackerOptions tracker;
   WhiskerReadoutOptions readout;
   Redetect redetect = Redetect::kEvery;
+  /// The frame (counted from the first one processed) whose fits are the whiskers at rest: Δκ,
+  /// M0 and the contact load are changes from it. Choose one where nothing touches the whiskers;
+  /// a whisker not tracked ok there takes its first ok frame after it. Until then the first
+  /// frame's fits are the rest (and there is no contact load), ≥ 0.
+  int rest_frame = 0;
+  /// Fit the contact load on frames in contact (contact_load below).
+  bool contact_load = true;
 
   std::optional<std::string> validate() const;
 };
@@ -43,6 +51,19 @@ struct WhiskerSessionWhisker {
   /// Contact with an object the detection of this frame saw, for a whisker tracked ok on a frame
   /// detection ran on.
   std::optional<WhiskerContact> contact;
+  /// The force at the contact point that, with the follicle clamped at its tracked pose, best
+  /// explains the whole tracked whisker against its rest shape (rt::LoadFit on the whisker's beam
+  /// subdivided 4×: the load point moves with the contact in steps of a quarter element). For a
+  /// whisker in contact after its rest frame. Model units: the trackers' section (E, width h in
+  /// pixels), lengths in pixels.
+  struct ContactLoad {
+    bool converged = false;
+    Eigen::Vector2d force = Eigen::Vector2d::Zero();  ///< on the whisker, image axes
+    Eigen::Vector2d point = Eigen::Vector2d::Zero();  ///< where it acts (the fit's node)
+    double moment = 0.0;  ///< (point − follicle) × force: the contact's moment about the follicle
+    double rms_px = 0.0;  ///< the fitted equilibrium's misfit to the tracked nodes
+  };
+  std::optional<ContactLoad> contact_load;
 };
 
 class WhiskerSession {
@@ -72,12 +93,19 @@ class WhiskerSession {
   const std::vector<float>& object_distance() const { return object_distance_; }
 
  private:
+  void take_rest(int w);
+  WhiskerSessionWhisker::ContactLoad fit_contact(int w, const WhiskerContact& contact);
+
   WhiskerSessionOptions options_;
   WhiskerDetection first_;
   double first_seconds_ = 0.0;
   std::optional<WhiskerTracker> tracker_;
   std::vector<WhiskerReadoutModel> readouts_;
   std::vector<WhiskerSessionWhisker> whiskers_;
+  // Per whisker: the rest state once taken, and the contact-load fit on the rest shape.
+  std::vector<char> rest_taken_;
+  std::vector<Eigen::VectorXd> rest_state_, contact_target_;
+  std::vector<std::optional<LoadFit>> contact_fit_;
   std::vector<float> object_distance_;
   WhiskerAssociation association_;
   int frames_ = 0;

@@ -16,8 +16,10 @@ case "$case" in
     if [ "$case" = moving ]; then motion=translate_rotate seed=2; fi
     "$bin/sinew-synth" --scenario whisker-pad --out "$work/pad" --face-motion "$motion" \
       --seed "$seed" >/dev/null
+    # The rest frame: 20, where no whisker touches anything (the pressed whisker touches the pole
+    # on frames 0-12 of the still face's sequence).
     "$bin/sinew-track" --input "$work/pad/frames/f_%04d.png" --whiskers --face left \
-      --out "$work/results.jsonl"
+      --rest-frame 20 --out "$work/results.jsonl"
     # Measured: still face 99.6 % good (ok and within 0.5 px of the true curve), moving face
     # 98.5 % (98.9 % with OpenCV's AVX2 paths off); every whisker found, no swap; follicles (median per whisker) within 0.34 px (still)
     # and 0.54 px (moving).
@@ -26,7 +28,10 @@ case "$case" in
     # 0.58 px (median) along the whisker from the truth's. With the head moving, the pressed
     # whisker's fit drifts near the pole and 26 of 64 contact frames are missed: reported, not
     # required.
-    good=0.98 base=1.0 contact=(--max-contact-arc-px 1.5)
+    # The contact load (a normal force at the contact point fitted to the whole whisker, against
+    # its shape on frame 20): the contact's moment about the follicle 21.6 % off the truth's
+    # (median over 55 contact frames; 6 within 5 %), the force 25.9 %; required: median 35 %.
+    good=0.98 base=1.0 contact=(--max-contact-arc-px 1.5 --max-contact-moment-error 0.35)
     if [ "$case" = moving ]; then good=0.97 contact=(); fi
     "$py" "$src/scripts/whisker_truth_check.py" --results "$work/results.jsonl" \
       --truth "$work/pad/truth.jsonl" --require-found --require-good "$good" --max-base-px "$base" \

@@ -421,6 +421,11 @@ int main(int argc, char** argv) {
   app.add_option("--moment-elements", readout.moment_elements,
                  "--whiskers: M0 from this many elements from the follicle (default 3)")
       ->check(CLI::PositiveNumber);
+  int rest_frame = 0;
+  app.add_option("--rest-frame", rest_frame,
+                 "--whiskers: the frame (counted from the first processed) whose fits are the "
+                 "whiskers at rest; choose one where nothing touches them (default 0)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--csv", csv, "--whiskers: also write one row per whisker per frame (CSV)");
   std::string plots, hdf5;
   app.add_option("--hdf5", hdf5,
@@ -467,6 +472,7 @@ int main(int argc, char** argv) {
       w.quiet = args.quiet;
       w.min_length_px = min_length;
       w.redetect = redetect;
+      w.rest_frame = rest_frame;
       if (!curvature_window.empty()) {
         readout.curvature_from_px = curvature_window[0];
         readout.curvature_to_px = curvature_window[1];

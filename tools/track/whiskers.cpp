@@ -86,6 +86,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   session_options.detection.face = parse_face(args.face);
   session_options.detection.min_length_px = args.min_length_px;
   session_options.readout = args.readout;
+  session_options.rest_frame = args.rest_frame;
   if (auto mode = rt::redetect_from_string(args.redetect)) {
     session_options.redetect = *mode;
   } else {
@@ -270,6 +271,15 @@ int run_whiskers(const WhiskerTrackArgs& args) {
             record["contact_arc_length_px"] = c.arc_length_px;
             record["contact_point"] = point(c.point);
             values[10] = c.arc_length_px;
+          }
+          if (sw.contact_load) {
+            // Model units (the trackers' section, pixels) until the load is put in SI.
+            const auto& load = *sw.contact_load;
+            record["contact_force_model"] = point(load.force);
+            record["contact_moment_model"] = load.moment;
+            record["contact_load_point"] = point(load.point);
+            record["contact_load_rms_px"] = load.rms_px;
+            record["contact_load_converged"] = load.converged;
           }
         }
       }

@@ -20,6 +20,8 @@ struct WhiskerTrackArgs {
   /// camera, whose whiskers move further between frames than the search reaches), only on frames
   /// with a "lost" whisker (a high-speed camera), or "never".
   std::string redetect = "every";
+  /// The frame whose fits are the whiskers at rest (rt::WhiskerSessionOptions::rest_frame).
+  int rest_frame = 0;
   /// The read-out: physics (scale, material, taper), head axis, curvature window; and a CSV file
   /// with one row per whisker per frame (empty: none).
   rt::WhiskerReadoutOptions readout;
