@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <optional>
 #include <utility>
 
 #include "rt/whisker/contact.hpp"
@@ -45,9 +46,12 @@ cv::Scalar id_colour(int id) {
   return cv::Scalar(c[0], c[1], c[2]);
 }
 
-// Ids in their colours, lost whiskers red, the follicle as a dot, a contact as a ring.
+// Ids in their colours, lost whiskers red, the follicle as a dot, a contact as a ring with the
+// contact force as an arrow on the whisker (40 px for the largest force of the video so far).
 void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker,
-                   const std::vector<rt::WhiskerContact>& contacts, int frame) {
+                   const std::vector<rt::WhiskerContact>& contacts,
+                   const std::vector<std::optional<rt::WhiskerSessionWhisker::ContactLoad>>& loads,
+                   double largest_force, int frame) {
   for (int w = 0; w < tracker.num_whiskers(); ++w) {
     const rt::Tracker& t = tracker.whisker(w);
     const rt::WhiskerFrame& r = tracker.result(w);
@@ -69,6 +73,12 @@ void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker,
     if (w < static_cast<int>(contacts.size()) && contacts[w].touching) {
       const cv::Point2d c(contacts[w].point.x(), contacts[w].point.y());
       cv::circle(img, c, 6, cv::Scalar(0, 255, 255), 2, cv::LINE_AA);
+    }
+    if (w < static_cast<int>(loads.size()) && loads[w] && largest_force > 0.0) {
+      const Eigen::Vector2d head = loads[w]->point;
+      const Eigen::Vector2d tail = head - 40.0 * loads[w]->force / largest_force;
+      cv::arrowedLine(img, cv::Point2d(tail.x(), tail.y()), cv::Point2d(head.x(), head.y()),
+                      cv::Scalar(0, 128, 255), 2, cv::LINE_AA, 0, 0.25);
     }
   }
   cv::putText(img, "frame " + std::to_string(frame), cv::Point(8, img.rows - 10),
@@ -123,6 +133,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   std::vector<WhiskerSeries> series;
   std::vector<std::vector<double>> centrelines;
   std::vector<rt::WhiskerContact> contacts;
+  std::vector<std::optional<rt::WhiskerSessionWhisker::ContactLoad>> loads;
+  double largest_force = 0.0;
   std::vector<double> latencies, redetect_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
@@ -215,6 +227,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     }
     nlohmann::json whiskers = nlohmann::json::array();
     contacts.assign(static_cast<std::size_t>(tracker.num_whiskers()), rt::WhiskerContact{});
+    loads.assign(static_cast<std::size_t>(tracker.num_whiskers()), std::nullopt);
     for (int w = 0; w < tracker.num_whiskers(); ++w) {
       const rt::Tracker& t = tracker.whisker(w);
       const rt::WhiskerFrame& r = tracker.result(w);
@@ -275,6 +288,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
           if (sw.contact_load) {
             // Model units (the trackers' section, pixels) until the load is put in SI.
             const auto& load = *sw.contact_load;
+            loads[w] = load;
+            largest_force = std::max(largest_force, load.force.norm());
             record["contact_force_model"] = point(load.force);
             record["contact_moment_model"] = load.moment;
             record["contact_load_point"] = point(load.point);
@@ -311,7 +326,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
 
     if (overlay.enabled()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
-      draw_whiskers(colour, session.tracker(), contacts, index);
+      draw_whiskers(colour, session.tracker(), contacts, loads, largest_force, index);
       overlay.write(colour, index);
     }
     ++processed;
