@@ -213,6 +213,8 @@ class PyWhiskers {
         d["contact_load_point"] = xy(sw.contact_load->point);
         d["contact_load_rms_px"] = sw.contact_load->rms_px;
         d["contact_load_converged"] = sw.contact_load->converged;
+        d["pammer_force_model"] = sw.contact_load->pammer_force;
+        d["pammer_moment_model"] = sw.contact_load->pammer_moment;
       }
       whiskers.append(d);
     }

@@ -105,7 +105,7 @@ def main():
     # Contact, per matched whisker: frames reported touching / truly touching, arc errors.
     said, true_contact, arc_errors = {}, {}, []
     # The contact load against the truth's: the contact's moment about the follicle and the force.
-    moment_errors, force_errors = [], []
+    moment_errors, force_errors, pammer_errors = [], [], []
     curve, base, per_curve = [], {}, {}
     worst_swap = None
     for rec in results:
@@ -134,6 +134,9 @@ def main():
                                          / abs(true_moment))
                     force_errors.append(float(np.linalg.norm(
                         np.asarray(w["contact_force_model"]) - force) / np.linalg.norm(force)))
+                    if "pammer_moment_model" in w:
+                        pammer_errors.append(abs(w["pammer_moment_model"] - true_moment)
+                                             / abs(true_moment))
             if w["status"] == "ok":
                 ok += 1
                 curve.append(d_own)
@@ -194,6 +197,11 @@ def main():
               f"{100 * np.percentile(me, 90):.1f} %, within 5 % on {int((me <= 0.05).sum())}; "
               f"force error median {100 * np.median(fe):.1f} %, within 10 % on "
               f"{int((fe <= 0.10).sum())}")
+        if pammer_errors:
+            pe = np.asarray(pammer_errors)
+            print(f"  beside it, the quasi-static (Pammer) moment from the curvature change: error "
+                  f"median {100 * np.median(pe):.1f} %, 90th percentile "
+                  f"{100 * np.percentile(pe, 90):.1f} %, within 5 % on {int((pe <= 0.05).sum())}")
     failed = []
     if args.max_contact_moment_error is not None:
         if not moment_errors or np.median(moment_errors) > args.max_contact_moment_error:

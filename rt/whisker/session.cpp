@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <utility>
 
 #include "common/timing.hpp"
 
@@ -111,7 +112,10 @@ std::string WhiskerSession::process(const ImageView& frame) {
       out.contact = object_distance_.empty()
                         ? WhiskerContact{}
                         : find_contact(t, object_distance_.data(), frame.width, frame.height);
-      if (out.contact->touching && contact_fit_[w]) out.contact_load = fit_contact(w, *out.contact);
+      if (out.contact->touching && contact_fit_[w]) {
+        out.contact_load = fit_contact(w, *out.contact);
+        pammer(w, *out.readout, *out.contact, &*out.contact_load);
+      }
     }
   }
   return {};
@@ -161,6 +165,48 @@ WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const Whis
   const Eigen::Vector2d arm = load.point - (X.col(0) + fit.state().segment<2>(0));
   load.moment = arm.x() * load.force.y() - arm.y() * load.force.x();
   return load;
+}
+
+namespace {
+
+// A point at arc length s along the tracked whisker's node polyline, and its chord's unit tangent.
+std::pair<Eigen::Vector2d, Eigen::Vector2d> along_nodes(const Tracker& t, double s) {
+  double walked = 0.0;
+  const int elements = t.num_nodes() - 1;
+  for (int e = 0; e < elements; ++e) {
+    const Eigen::Vector2d a = t.node_position(e), b = t.node_position(e + 1);
+    const double length = (b - a).norm();
+    if (walked + length >= s || e == elements - 1) {
+      const double f = length > 0.0 ? std::clamp((s - walked) / length, 0.0, 1.0) : 0.0;
+      return {a + f * (b - a),
+              length > 0.0 ? Eigen::Vector2d((b - a) / length) : Eigen::Vector2d(1.0, 0.0)};
+    }
+    walked += length;
+  }
+  return {t.node_position(0), Eigen::Vector2d(1.0, 0.0)};
+}
+
+}  // namespace
+
+void WhiskerSession::pammer(int w, const WhiskerReadout& readout, const WhiskerContact& c,
+                            WhiskerSessionWhisker::ContactLoad* load) const {
+  const Tracker& t = tracker_->whisker(w);
+  const WhiskerReadoutOptions& ro = options_.readout;
+  // Δκ per pixel and the trackers' E·I (model units, as the contact load).
+  const double dk =
+      ro.physics.si() ? readout.delta_curvature * ro.physics.mm_per_px : readout.delta_curvature;
+  const double h = options_.tracker.section_height_px;
+  const double EI = options_.tracker.young_modulus * h * h * h / 12.0;
+  const auto [xp, tp] = along_nodes(t, 0.5 * (ro.curvature_from_px + ro.curvature_to_px));
+  const auto [xc, tc] = along_nodes(t, c.arc_length_px);
+  const Eigen::Vector2d nc(-tc.y(), tc.x());
+  auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() * b.y() - a.y() * b.x();
+  };
+  const double lever = cross(xc - xp, nc);
+  if (!(std::abs(lever) > 1e-9)) return;
+  load->pammer_force = EI * dk / lever;
+  load->pammer_moment = cross(xc - t.node_position(0), nc) * load->pammer_force;
 }
 
 }  // namespace sinew::rt

@@ -62,6 +62,12 @@ struct WhiskerSessionWhisker {
     Eigen::Vector2d point = Eigen::Vector2d::Zero();  ///< where it acts (the fit's node)
     double moment = 0.0;  ///< (point − follicle) × force: the contact's moment about the follicle
     double rms_px = 0.0;  ///< the fitted equilibrium's misfit to the tracked nodes
+    /// The quasi-static estimate labs compute from curvature (Pammer et al. 2013): a force along
+    /// the normal at the contact whose moment at the curvature window's centre p is E·I·Δκ there,
+    /// f = E·I·Δκ / ((x_c − x_p) × n_c), and its moment about the follicle
+    /// (x_c − x_0) × n_c · f (the cosines of their formula as cross products). Model units.
+    double pammer_force = 0.0;
+    double pammer_moment = 0.0;
   };
   std::optional<ContactLoad> contact_load;
 };
@@ -95,6 +101,8 @@ class WhiskerSession {
  private:
   void take_rest(int w);
   WhiskerSessionWhisker::ContactLoad fit_contact(int w, const WhiskerContact& contact);
+  void pammer(int w, const WhiskerReadout& readout, const WhiskerContact& contact,
+              WhiskerSessionWhisker::ContactLoad* load) const;
 
   WhiskerSessionOptions options_;
   WhiskerDetection first_;

@@ -295,6 +295,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
             record["contact_load_point"] = point(load.point);
             record["contact_load_rms_px"] = load.rms_px;
             record["contact_load_converged"] = load.converged;
+            record["pammer_force_model"] = load.pammer_force;
+            record["pammer_moment_model"] = load.pammer_moment;
           }
         }
       }
