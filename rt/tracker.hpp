@@ -52,8 +52,7 @@ struct TrackerOptions {
   int samples_per_element = 8;
   /// Search ±range pixels along the normal around the model, ≥ 1: in the repetitions after a wide
   /// first search (which caught the large motion), and in the first when the motion is predictable
-  /// (see predictable_px). Costs linearly. 8 (was 16): a third fewer samples per search, no
-  /// measured change in accuracy (tests/tools, bench).
+  /// (see predictable_px). Costs linearly (docs/tracker.md, "Defaults").
   int search_range_px = 8;
   /// Search range of each frame's first repetition, pixels, ≥ search_range_px: catches the large
   /// motion of the first frames (no velocity yet) and of sudden accelerations; later repetitions
@@ -84,9 +83,7 @@ struct TrackerOptions {
   /// image_stiffness·12·EI/L₀³ per element; shorter ones keep the image term's weight per unit
   /// length at that of ℓ (12·EI/ℓ⁴), where L₀⁻³ would make it grow as the fourth power of the
   /// number of elements while the beam's axial stiffness grows only linearly: the image then
-  /// stretches the beam along itself, where edges carry no information, and Newton steps converge
-  /// only linearly (bench, 128 elements of 4.7 px, width 12 px: 5.4 → 3.0 iterations per frame,
-  /// node error 0.20 → 0.03 px; 64 elements 0.086 → 0.029 px; 16 elements unchanged).
+  /// stretches the beam along itself, where edges carry no information.
   double min_image_length_px = 0.0;
   /// Fraction β of the bending force measured from the reference rather than from the start of
   /// each repetition, [0, 1). 0 is the seed's scheme (the shape follows the data with no memory of
@@ -101,18 +98,10 @@ struct TrackerOptions {
   double convergence_px = 0.02;
   /// A repetition searches the image again only if the model moved more than this (pixels, max
   /// over nodes) since the last search; otherwise it re-uses the candidates. 0 always searches.
-  /// 3 px (was 0.75, then 2) saves the second search on most frames at no measured loss
-  /// (tests/tools unchanged; bench, 16 and 32 elements: 1.25 → 1.03 searches per frame, where a
-  /// tip moving 30 px per frame misses the constant-velocity prediction by 2.1–2.3 px; node error
-  /// 0.069 → 0.068 and 0.097 → 0.087 px). It was also bounded by a sixth of the element length
-  /// while short elements let the image term stretch the beam (see min_image_length_px); with
-  /// that fixed, re-used candidates cost short elements nothing either (bench, 64 and 128
-  /// elements: 1.4 and 1.8 → 1.02 searches per frame, node error 0.029 and 0.027 px). A wide
-  /// search's one-row candidates are always replaced by a narrow search.
+  /// A wide search's one-row candidates are always replaced by a narrow search.
   double research_px = 3.0;
   /// Tukey's constant in units of the robust residual scale, > 0. 4.685 is the textbook 95 %
-  /// efficiency; 3.5 rejects clutter crossings earlier (measured: 1–2 % better tip loads on the
-  /// synthetic sequences, no loss elsewhere).
+  /// efficiency; 3.5 rejects clutter crossings earlier.
   double tukey_c = 3.5;
   /// Floor of the robust residual scale (1.4826·median|d|), pixels, > 0.
   double min_sigma_px = 0.25;

@@ -44,9 +44,7 @@ struct WhiskerDetectionOptions {
   /// A seed's ridge contrast, per cent of the backlight, > 0.
   double seed_contrast = 1.0;
   /// A trace is a whisker only if its median contrast is at most this (per cent, in the
-  /// averaged map): a backlit hair is faint, a rod of the apparatus is not. Shared whisker video,
-  /// frame 0: whiskers 1.7–4.7 %, the apparatus' rods and edges 9.3–13.5 %; rendered pads (5–20
-  /// grey levels at the follicle): 1.1–3.0 %.
+  /// averaged map): a backlit hair is faint, a rod of the apparatus is not.
   double max_contrast = 7.0;
   /// Tracing goes on while the contrast (per cent) is at least this, > 0.
   double follow_contrast = 0.5;
@@ -55,11 +53,7 @@ struct WhiskerDetectionOptions {
   double seed_noise_factor = 4.0;
   double follow_noise_factor = 2.5;
   /// A trace ends where it turns by more than this over 12 px, degrees, in (0, 180): a whisker
-  /// (radius of curvature ≥ 25 px) turns less. At 35° traces on the shared video jumped between
-  /// the converging whiskers of the cluster at the pad's left (a kinked 72 px trace on frame 0):
-  /// whisker-frames on a ridge 76.2 % of all; 30°: 87.7 % (the same with OpenCV's AVX2 paths
-  /// off); 25°: 84.1 %; 20°: 85.0 % but the scene test's faintest whisker is no longer found.
-  /// The rendered pads do not change.
+  /// (radius of curvature ≥ 25 px) turns less.
   double max_turn_deg = 30.0;
   /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
   int max_gap_px = 12;
@@ -67,9 +61,7 @@ struct WhiskerDetectionOptions {
   /// length (0: the raw trace, re-centred step by step on a noisy ridge), fitted to the points
   /// farther than surround_px + smoothing_clear_px from the face's dark mask and extended along its
   /// tangent to the face's edge, [0, 6]; pixels, ≥ 0. A trace the polynomial misses by more
-  /// than smoothing_max_residual_px is not one whisker and is dropped, pixels, > 0. Frame 0 of the
-  /// shared video: its whiskers' traces ≤ 0.92 px, traces that hop between the whiskers of the
-  /// dense cluster 2.2–2.5 px; rendered pads (σ 4): whiskers ≤ 1.01 px.
+  /// than smoothing_max_residual_px is not one whisker and is dropped, pixels, > 0.
   int smoothing_degree = 3;
   double smoothing_clear_px = 8.0;
   double smoothing_max_residual_px = 1.5;

@@ -77,9 +77,7 @@ TrackerOptions WhiskerTrackerOptions::default_tracker_options() {
   t.first_search_range_px = 10;
   t.verify_forces = false;
   // A line counts as the whisker only with 60 % of its typical response (the default 40 % let a
-  // faint whisker's fit stay ok on noise). Chosen on the shared real video (tracked
-  // whisker-frames on a ridge by scripts/whisker_check.py: 0.4: 79 %, 0.6: 93 %, 0.7: 84 %); the
-  // rendered pads give the same figures at all three.
+  // faint whisker's fit stay ok on noise; docs/tracker.md, "Defaults").
   t.min_relative_strength = 0.6;
   // The follicle's observation holds the whole whisker along itself: weigh it as an element.
   t.end_weight = t.samples_per_element;

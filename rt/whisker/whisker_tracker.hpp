@@ -55,9 +55,7 @@ struct WhiskerTrackerOptions {
   double associate_cover_fraction = 0.8;
   /// A kept fit with fewer than this fraction of its nodes on a detection that covers it is
   /// fitted again from the detection, and replaced when the refit stays on it, [0, 1] (0: never).
-  /// Moving rendered pad (good whisker-frames) / shared video (on a ridge, all whisker-frames):
-  /// never 97.8 % / 89.0 %; 0.6: 98.5 / 89.3; 0.8: 98.5 / 90.5; 0.95: 98.5 / 90.4. The
-  /// pole-pressed whisker's fit had stayed ok with its far half 28 px off.
+  /// A pole-pressed whisker's fit had stayed ok with its far half 28 px off.
   double associate_stray_fraction = 0.8;
   /// See the header comment.
   double claim_px = 1.5;
