@@ -115,10 +115,21 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   const std::string curvature_key = si ? "curvature_per_mm" : "curvature_per_px";
   const std::string delta_key = si ? "delta_curvature_per_mm" : "delta_curvature_per_px";
   const std::string moment_key = si ? "m0_N_m" : "m0_model";
-  const std::vector<std::string> value_columns = {
-      "follicle_x_px",        "follicle_y_px", "tip_x_px", "tip_y_px", "length_px",
-      "base_angle_deg",       curvature_key,   delta_key,  moment_key, "contact",
-      "contact_arc_length_px"};
+  const std::vector<std::string> value_columns = {"follicle_x_px",
+                                                  "follicle_y_px",
+                                                  "tip_x_px",
+                                                  "tip_y_px",
+                                                  "length_px",
+                                                  "base_angle_deg",
+                                                  curvature_key,
+                                                  delta_key,
+                                                  moment_key,
+                                                  "contact",
+                                                  "contact_arc_length_px",
+                                                  "contact_force_x_model",
+                                                  "contact_force_y_model",
+                                                  "contact_moment_model",
+                                                  "pammer_moment_model"};
   std::ofstream csv;
   if (!args.csv.empty()) {
     csv.open(args.csv + ".tmp");
@@ -269,9 +280,21 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         record[curvature_key] = q.curvature;
         record[delta_key] = q.delta_curvature;
         record[moment_key] = q.moment;
-        values = {
-            r.follicle.x(), r.follicle.y(),    r.tip.x(), r.tip.y(), r.length_px, q.base_angle_deg,
-            q.curvature,    q.delta_curvature, q.moment,  nan,       nan};
+        values = {r.follicle.x(),
+                  r.follicle.y(),
+                  r.tip.x(),
+                  r.tip.y(),
+                  r.length_px,
+                  q.base_angle_deg,
+                  q.curvature,
+                  q.delta_curvature,
+                  q.moment,
+                  nan,
+                  nan,
+                  nan,
+                  nan,
+                  nan,
+                  nan};
         // Contact with a pole or another object the detection of this frame saw.
         if (sw.contact) {
           const rt::WhiskerContact& c = *sw.contact;
@@ -297,6 +320,10 @@ int run_whiskers(const WhiskerTrackArgs& args) {
             record["contact_load_converged"] = load.converged;
             record["pammer_force_model"] = load.pammer_force;
             record["pammer_moment_model"] = load.pammer_moment;
+            values[11] = load.force.x();
+            values[12] = load.force.y();
+            values[13] = load.moment;
+            values[14] = load.pammer_moment;
           }
         }
       }
