@@ -102,6 +102,7 @@ std::string WhiskerSession::process(const ImageView& frame) {
     have_objects = again.error.empty();
     redetect_seconds_ = seconds_since(t0);
   }
+  const auto readout_start = std::chrono::steady_clock::now();
   for (int w = 0; w < tracker_->num_whiskers(); ++w) {
     WhiskerSessionWhisker& out = whiskers_[w];
     out = WhiskerSessionWhisker{};
@@ -118,6 +119,7 @@ std::string WhiskerSession::process(const ImageView& frame) {
       }
     }
   }
+  readout_seconds_ = seconds_since(readout_start);
   return {};
 }
 

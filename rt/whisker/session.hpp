@@ -93,6 +93,8 @@ class WhiskerSession {
   double tracking_seconds() const { return tracking_seconds_; }
   bool redetected() const { return redetected_; }
   double redetect_seconds() const { return redetect_seconds_; }
+  /// The read-out of the frame just processed (mechanics, contact, contact load), seconds.
+  double readout_seconds() const { return readout_seconds_; }
   const WhiskerAssociation& association() const { return association_; }
   const WhiskerSessionWhisker& whisker(int w) const { return whiskers_[w]; }
   /// Distance to the objects of the last detection (see WhiskerDetection::object_distance).
@@ -117,7 +119,7 @@ class WhiskerSession {
   std::vector<float> object_distance_;
   WhiskerAssociation association_;
   int frames_ = 0;
-  double tracking_seconds_ = 0.0, redetect_seconds_ = 0.0;
+  double tracking_seconds_ = 0.0, redetect_seconds_ = 0.0, readout_seconds_ = 0.0;
   bool redetected_ = false;
 };
 

@@ -146,7 +146,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   std::vector<rt::WhiskerContact> contacts;
   std::vector<std::optional<rt::WhiskerSessionWhisker::ContactLoad>> loads;
   double largest_force = 0.0;
-  std::vector<double> latencies, redetect_times;
+  std::vector<double> latencies, redetect_times, readout_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
   int index = 0, processed = 0;
@@ -222,6 +222,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     }
     const double seconds = session.tracking_seconds();
     latencies.push_back(seconds * 1e6);
+    readout_times.push_back(session.readout_seconds() * 1e6);
     const bool redetect = session.redetected();
     const rt::WhiskerAssociation& association = session.association();
     if (redetect) redetect_times.push_back(session.redetect_seconds() * 1e3);
@@ -392,7 +393,9 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
     std::cout << "\n  latency per frame (all whiskers): median " << percentile(latencies, 0.5)
               << " us, p99 " << percentile(latencies, 0.99) << " us; detection " << detect_ms
-              << " ms\n";
+              << " ms\n  read-out per frame (mechanics, contact, contact load): median "
+              << percentile(readout_times, 0.5) << " us, p99 " << percentile(readout_times, 0.99)
+              << " us\n";
     if (!redetect_times.empty()) {
       std::cout << "  detection again (--redetect " << args.redetect
                 << ", outside the real-time path): " << redetect_times.size() << " frames, median "
