@@ -3,7 +3,10 @@
 // graded backlight with noise σ = 4 (tests/support/whisker_render.hpp). Each frame is all ten
 // whiskers' Newton fits with their per-node forces p(u). Median and 99th percentile over the
 // frames, with the whisker-frames reported ok and the mean node distance to the true curves; the
-// first frame's detection (detect_whiskers, set-up work) is timed separately.
+// first frame's detection (detect_whiskers, set-up work) is timed separately. Beside it, the
+// read-out a lab adds (rt::WhiskerReadoutModel for every whisker tracked ok) and, as the worst
+// case, a contact load fitted on every whisker (rt::LoadFit: a force along the normal at 60 % of
+// its length, against its first frame's shape, as rt::WhiskerSession fits one at a contact).
 //   build/release/bench/bench_whisker_latency --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 
@@ -16,7 +19,9 @@
 #include <random>
 #include <vector>
 
+#include "rt/load_fit.hpp"
 #include "rt/whisker/detection.hpp"
+#include "rt/whisker/readout.hpp"
 #include "rt/whisker/whisker_tracker.hpp"
 #include "tests/support/whisker_render.hpp"
 
@@ -69,7 +74,7 @@ const Sequence& sequence() {
 
 void BM_TenWhiskersFrame(benchmark::State& state) {
   const Sequence& seq = sequence();
-  std::vector<double> micros;
+  std::vector<double> micros, readout_micros, load_micros;
   double detect_ms = 0.0, error_sum = 0.0;
   long ok = 0, whisker_frames = 0, found = 0;
   long repetitions = 0, iterations = 0, searches = 0;
@@ -91,9 +96,53 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
       state.SkipWithError(tracker.error().c_str());
       return;
     }
+    std::vector<rt::WhiskerReadoutModel> readouts;
+    std::vector<rt::LoadFit> fits;
+    std::vector<Eigen::VectorXd> rest, target;
     for (int f = 0; f < kFrames; ++f) {
       const double seconds = tracker.track(seq.frames[f].view());
       micros.push_back(seconds * 1e6);
+      if (f == 0) {
+        for (int w = 0; w < tracker.num_whiskers(); ++w) {
+          const rt::Tracker& t = tracker.whisker(w);
+          readouts.emplace_back(t.model(), rt::WhiskerReadoutOptions{});
+          readouts.back().set_rest(t.state());
+          common::BeamDescription d = t.model().description();
+          d.rest_positions = t.model().current_positions(t.state());
+          d.fixed.clear();
+          d.clamp(0);
+          rt::LoadFitOptions lo;
+          lo.max_load_points = 1;
+          fits.emplace_back(d, lo);
+          rest.push_back(t.state());
+          target.push_back(t.state());
+        }
+      }
+      const auto r0 = std::chrono::steady_clock::now();
+      double angle_sum = 0.0;  // keeps the read-out from being optimised away
+      for (int w = 0; w < tracker.num_whiskers(); ++w) {
+        if (tracker.result(w).status == rt::FrameStatus::kOk) {
+          angle_sum += readouts[w].evaluate(tracker.whisker(w).state()).base_angle_deg;
+        }
+      }
+      const auto r1 = std::chrono::steady_clock::now();
+      for (int w = 0; w < tracker.num_whiskers() && f > 0; ++w) {
+        const rt::Tracker& t = tracker.whisker(w);
+        if (tracker.result(w).status != rt::FrameStatus::kOk) continue;
+        target[w] = t.state() - rest[w];
+        const int fine = fits[w].model().num_nodes();
+        const int point = (6 * (fine - 1)) / 10;
+        const int e = std::min(point * (t.num_nodes() - 1) / (fine - 1), t.num_nodes() - 2);
+        const Eigen::Vector2d chord = (t.node_position(e + 1) - t.node_position(e)).normalized();
+        const double normal[2] = {-chord.y(), chord.x()};
+        angle_sum += fits[w].fit(target[w], &point, 1, normal).rms_px;
+      }
+      const auto r2 = std::chrono::steady_clock::now();
+      benchmark::DoNotOptimize(angle_sum);
+      readout_micros.push_back(std::chrono::duration<double, std::micro>(r1 - r0).count());
+      if (f > 0) {
+        load_micros.push_back(std::chrono::duration<double, std::micro>(r2 - r1).count());
+      }
       for (int w = 0; w < tracker.num_whiskers(); ++w) {
         ++whisker_frames;
         repetitions += tracker.result(w).summary.repetitions;
@@ -110,9 +159,20 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
       }
     }
   }
-  std::sort(micros.begin(), micros.end());
-  state.counters["median_us"] = micros[micros.size() / 2];
-  state.counters["p99_us"] = micros[std::min(micros.size() - 1, micros.size() * 99 / 100)];
+  auto median = [](std::vector<double>& v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  auto p99 = [](std::vector<double>& v) {
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, v.size() * 99 / 100)];
+  };
+  state.counters["median_us"] = median(micros);
+  state.counters["p99_us"] = p99(micros);
+  state.counters["readout_median_us"] = median(readout_micros);
+  state.counters["readout_p99_us"] = p99(readout_micros);
+  state.counters["all_contact_load_median_us"] = median(load_micros);
+  state.counters["all_contact_load_p99_us"] = p99(load_micros);
   state.counters["ok_fraction"] = double(ok) / double(std::max(whisker_frames, 1L));
   state.counters["node_dist_px"] = error_sum / double(std::max(ok, 1L));
   const double per = 1.0 / double(std::max(whisker_frames, 1L));
