@@ -5,6 +5,7 @@
 
 #include "rt/detail/field_error.hpp"
 #include "rt/detail/order_statistic.hpp"
+#include "rt/detail/solver_options.hpp"
 
 namespace sinew::rt {
 
@@ -37,15 +38,6 @@ common::BeamDescription subdivided_description(const common::BeamDescription& be
   return d;
 }
 
-common::StaticSolverOptions nested_solver_options() {
-  common::StaticSolverOptions o;
-  o.load_steps = 1;
-  o.max_iterations_per_step = 25;
-  o.max_step_cuts = 10;
-  o.residual_tolerance = 1e-8;
-  return o;
-}
-
 // A step moving no node by more than this ends the fit, pixels.
 constexpr double kConvergedPx = 1e-3;
 // Each step may move a node by at most this, pixels.
@@ -68,7 +60,7 @@ std::optional<std::string> LoadFitOptions::validate() const {
 LoadFit::LoadFit(const common::BeamDescription& beam, LoadFitOptions options)
     : options_(options),
       model_(subdivided_description(beam, std::max(1, options.subdivisions))),
-      solver_(model_, nested_solver_options()) {
+      solver_(model_, detail::solver_options(1, 25, 10)) {
   if (auto err = options_.validate()) {
     error_ = *err;
     return;

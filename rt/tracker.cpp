@@ -9,6 +9,7 @@
 #include "rt/centreline.hpp"
 #include "rt/detail/field_error.hpp"
 #include "rt/detail/order_statistic.hpp"
+#include "rt/detail/solver_options.hpp"
 
 namespace sinew::rt {
 
@@ -27,24 +28,6 @@ common::BeamDescription verification_description(const common::BeamDescription& 
   const common::BeamModel probe(beam);
   if (probe.valid() && !probe.rigid_motions_constrained()) d.clamp(0);
   return d;
-}
-
-common::StaticSolverOptions direct_solver_options() {
-  common::StaticSolverOptions o;
-  o.load_steps = 1;
-  o.max_iterations_per_step = 20;
-  o.max_step_cuts = 0;
-  o.residual_tolerance = 1e-8;
-  return o;
-}
-
-common::StaticSolverOptions solver_options(int steps) {
-  common::StaticSolverOptions o;
-  o.load_steps = std::max(1, steps);
-  o.max_iterations_per_step = 25;
-  o.max_step_cuts = 10;
-  o.residual_tolerance = 1e-8;
-  return o;
 }
 
 }  // namespace
@@ -143,9 +126,9 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
       options_(options),
       load_nodes_(std::move(load_nodes)),
       verify_model_(verification_description(beam)),
-      verify_solver_(verify_model_, solver_options(options.verify_load_steps)),
-      verify_solver_warm_(verify_model_, solver_options(8)),
-      verify_solver_direct_(verify_model_, direct_solver_options()),
+      verify_solver_(verify_model_, detail::solver_options(options.verify_load_steps, 25, 10)),
+      verify_solver_warm_(verify_model_, detail::solver_options(8, 25, 10)),
+      verify_solver_direct_(verify_model_, detail::solver_options(1, 20, 0)),
       fit_points_(load_nodes_.size()) {
   if (!model_.valid()) {
     error_ = model_.error();
