@@ -72,15 +72,27 @@ struct TruthSequence {
   Eigen::VectorXd u, f_prev;
 };
 
-TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
-  const Cantilever c;
-  TruthSequence truth(c);
-
+// Edge mode on the rendered 6 px dark band.
+TrackerOptions band_options() {
   TrackerOptions options;
   options.observation = ObservationMode::kEdge;
   options.half_width_px = 3.0;
   options.polarity = EdgePolarity::kDarkObject;
-  Tracker tracker(c.description(1), options, {c.elements});
+  return options;
+}
+
+// The truth under tip load P, rendered with noise σ = 4.
+GreyImage noisy_frame(TruthSequence& truth, double P, std::mt19937& gen) {
+  EXPECT_TRUE(truth.load(P));
+  GreyImage img = truth.render();
+  sinew::testing::add_noise(img, 4.0, gen);
+  return img;
+}
+
+TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
+  const Cantilever c;
+  TruthSequence truth(c);
+  Tracker tracker(c.description(1), band_options(), {c.elements});
   ASSERT_TRUE(tracker.valid()) << tracker.error();
 
   std::mt19937 gen(7);
@@ -89,10 +101,7 @@ TEST(Tracker, CantileverEdgeModeFollowsTipLoadAndFitsIt) {
   for (int k = 0; k < frames; ++k) {
     const double lambda = lambda_max * k / (frames - 1);
     const double P = lambda * c.EI() / (c.length * c.length);
-    ASSERT_TRUE(truth.load(P));
-    GreyImage img = truth.render();
-    sinew::testing::add_noise(img, 4.0, gen);
-
+    const GreyImage img = noisy_frame(truth, P, gen);
     const FrameSummary s = tracker.track(img.view());
     SCOPED_TRACE("frame " + std::to_string(k));
     EXPECT_EQ(s.status, FrameStatus::kOk);
@@ -124,15 +133,11 @@ namespace {
 
 // The coupled load fit (loads and equilibrium solved together, one factorisation per iteration)
 // and the nested one (the equilibrium solved to 1e-9 inside every iteration) minimise the same
-// robust misfit: on the same tracked shapes they give the same tip load, and the coupled one's
-// state is an equilibrium of its loads (the verification's forward solve reproduces it).
+// robust misfit: on the same tracked shapes they give the same tip load.
 TEST(Tracker, CoupledLoadFitGivesTheNestedFitsLoads) {
   const Cantilever c;
   TruthSequence truth(c);
-  TrackerOptions coupled_options;
-  coupled_options.observation = ObservationMode::kEdge;
-  coupled_options.half_width_px = 3.0;
-  coupled_options.polarity = EdgePolarity::kDarkObject;
+  TrackerOptions coupled_options = band_options();
   TrackerOptions nested_options = coupled_options;
   coupled_options.coupled_load_fit = true;
   nested_options.coupled_load_fit = false;
@@ -144,9 +149,7 @@ TEST(Tracker, CoupledLoadFitGivesTheNestedFitsLoads) {
   int compared = 0;
   for (int k = 0; k < frames; ++k) {
     const double P = 3.0 * k / (frames - 1) * c.EI() / (c.length * c.length);
-    ASSERT_TRUE(truth.load(P));
-    GreyImage img = truth.render();
-    sinew::testing::add_noise(img, 4.0, gen);
+    const GreyImage img = noisy_frame(truth, P, gen);
     const FrameSummary a = coupled.track(img.view());
     const FrameSummary b = nested.track(img.view());
     SCOPED_TRACE("frame " + std::to_string(k));
