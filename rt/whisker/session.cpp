@@ -1,5 +1,6 @@
 #include "rt/whisker/session.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -37,6 +38,9 @@ std::optional<std::string> WhiskerSessionOptions::validate() const {
   if (rest_frame < 0) {
     return "options.rest_frame = " + std::to_string(rest_frame) + ": must be >= 0";
   }
+  if (rest_frames < 1) {
+    return "options.rest_frames = " + std::to_string(rest_frames) + ": must be >= 1";
+  }
   return std::nullopt;
 }
 
@@ -67,6 +71,8 @@ std::string WhiskerSession::process(const ImageView& frame) {
     readouts_ = std::move(readouts);
     whiskers_.resize(readouts_.size());
     rest_taken_.assign(readouts_.size(), 0);
+    rest_count_.assign(readouts_.size(), 0);
+    rest_sum_.resize(readouts_.size());
     rest_state_.resize(readouts_.size());
     contact_target_.resize(readouts_.size());
     contact_fit_.resize(readouts_.size());
@@ -77,11 +83,6 @@ std::string WhiskerSession::process(const ImageView& frame) {
   if (frames_ == 0) {
     for (int w = 0; w < tracker_->num_whiskers(); ++w) {
       readouts_[w].set_rest(tracker_->whisker(w).state());
-    }
-  }
-  if (frames_ >= options_.rest_frame) {
-    for (int w = 0; w < tracker_->num_whiskers(); ++w) {
-      if (!rest_taken_[w] && tracker_->result(w).status == FrameStatus::kOk) take_rest(w);
     }
   }
   ++frames_;
@@ -120,20 +121,62 @@ std::string WhiskerSession::process(const ImageView& frame) {
     }
   }
   readout_seconds_ = seconds_since(readout_start);
+  // The rest shape: from the rest frame on, frames tracked ok and touching nothing.
+  if (frames_ - 1 >= options_.rest_frame) {
+    for (int w = 0; w < tracker_->num_whiskers(); ++w) {
+      const WhiskerSessionWhisker& out = whiskers_[w];
+      if (rest_taken_[w] || tracker_->result(w).status != FrameStatus::kOk) continue;
+      if (out.contact && out.contact->touching) continue;
+      accumulate_rest(w);
+    }
+  }
   return {};
 }
 
-void WhiskerSession::take_rest(int w) {
+void WhiskerSession::accumulate_rest(int w) {
   const Tracker& t = tracker_->whisker(w);
-  readouts_[w].set_rest(t.state());
-  rest_state_[w] = t.state();
-  contact_target_[w].setZero(t.state().size());
+  const Eigen::VectorXd& u = t.state();
+  const Eigen::Matrix2Xd& X = t.model().rest_positions();
+  const int n = t.num_nodes();
+  if (rest_count_[w] == 0) {
+    rest_sum_[w] = u;
+  } else {
+    // Turned about its follicle onto the first frame's pose (least squares over the nodes).
+    const Eigen::VectorXd& first = rest_state_[w];
+    const Eigen::Vector2d x0 = X.col(0) + u.segment<2>(0);
+    const Eigen::Vector2d r0 = X.col(0) + first.segment<2>(0);
+    double num = 0.0, den = 0.0;
+    for (int i = 1; i < n; ++i) {
+      const Eigen::Vector2d a = X.col(i) + u.segment<2>(3 * i) - x0;
+      const Eigen::Vector2d b = X.col(i) + first.segment<2>(3 * i) - r0;
+      num += a.x() * b.y() - a.y() * b.x();
+      den += a.dot(b);
+    }
+    const double phi = std::atan2(num, den);
+    const Eigen::Rotation2Dd R(phi);
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d x = r0 + R * (X.col(i) + u.segment<2>(3 * i) - x0);
+      rest_sum_[w].segment<2>(3 * i) += x - X.col(i);
+      rest_sum_[w][3 * i + 2] += u[3 * i + 2] + phi;
+    }
+  }
+  if (rest_count_[w] == 0) rest_state_[w] = u;  // the pose the others are turned onto
+  if (++rest_count_[w] == options_.rest_frames) {
+    take_rest(w, rest_sum_[w] / static_cast<double>(options_.rest_frames));
+  }
+}
+
+void WhiskerSession::take_rest(int w, const Eigen::VectorXd& u) {
+  const Tracker& t = tracker_->whisker(w);
+  readouts_[w].set_rest(u);
+  rest_state_[w] = u;
+  contact_target_[w].setZero(u.size());
   rest_taken_[w] = 1;
   if (!options_.contact_load) return;
   // The whisker's beam with the tracked rest shape as its reference, clamped at the follicle
   // (which the fit holds at its tracked pose).
   common::BeamDescription d = t.model().description();
-  d.rest_positions = t.model().current_positions(t.state());
+  d.rest_positions = t.model().current_positions(u);
   d.fixed.clear();
   d.clamp(0);
   LoadFitOptions o;

@@ -37,6 +37,10 @@ struct WhiskerSessionOptions {
   /// a whisker not tracked ok there takes its first ok frame after it. Until then the first
   /// frame's fits are the rest (and there is no contact load), ≥ 0.
   int rest_frame = 0;
+  /// The rest shape is the mean of this many frames without contact from rest_frame on (each
+  /// turned about its follicle onto the first: whisking turns the whole whisker), ≥ 1. Tracking
+  /// noise in a single rest frame reads as a load on every later frame.
+  int rest_frames = 1;
   /// Fit the contact load on frames in contact (contact_load below).
   bool contact_load = true;
 
@@ -101,7 +105,8 @@ class WhiskerSession {
   const std::vector<float>& object_distance() const { return object_distance_; }
 
  private:
-  void take_rest(int w);
+  void take_rest(int w, const Eigen::VectorXd& u);
+  void accumulate_rest(int w);
   WhiskerSessionWhisker::ContactLoad fit_contact(int w, const WhiskerContact& contact);
   void pammer(int w, const WhiskerReadout& readout, const WhiskerContact& contact,
               WhiskerSessionWhisker::ContactLoad* load) const;
@@ -114,6 +119,8 @@ class WhiskerSession {
   std::vector<WhiskerSessionWhisker> whiskers_;
   // Per whisker: the rest state once taken, and the contact-load fit on the rest shape.
   std::vector<char> rest_taken_;
+  std::vector<int> rest_count_;
+  std::vector<Eigen::VectorXd> rest_sum_;
   std::vector<Eigen::VectorXd> rest_state_, contact_target_;
   std::vector<std::optional<LoadFit>> contact_fit_;
   std::vector<float> object_distance_;

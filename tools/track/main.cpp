@@ -426,6 +426,12 @@ int main(int argc, char** argv) {
                  "--whiskers: the frame (counted from the first processed) whose fits are the "
                  "whiskers at rest; choose one where nothing touches them (default 0)")
       ->check(CLI::NonNegativeNumber);
+  int rest_frames = 1;
+  app.add_option("--rest-frames", rest_frames,
+                 "--whiskers: the rest shape is the mean of this many frames without contact "
+                 "from the rest frame on, each turned about its follicle onto the first "
+                 "(default 1)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--csv", csv, "--whiskers: also write one row per whisker per frame (CSV)");
   std::string plots, hdf5;
   app.add_option("--hdf5", hdf5,
@@ -473,6 +479,7 @@ int main(int argc, char** argv) {
       w.min_length_px = min_length;
       w.redetect = redetect;
       w.rest_frame = rest_frame;
+      w.rest_frames = rest_frames;
       if (!curvature_window.empty()) {
         readout.curvature_from_px = curvature_window[0];
         readout.curvature_to_px = curvature_window[1];

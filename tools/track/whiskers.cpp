@@ -97,6 +97,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   session_options.detection.min_length_px = args.min_length_px;
   session_options.readout = args.readout;
   session_options.rest_frame = args.rest_frame;
+  session_options.rest_frames = args.rest_frames;
   if (auto mode = rt::redetect_from_string(args.redetect)) {
     session_options.redetect = *mode;
   } else {

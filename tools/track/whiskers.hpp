@@ -22,6 +22,7 @@ struct WhiskerTrackArgs {
   std::string redetect = "every";
   /// The frame whose fits are the whiskers at rest (rt::WhiskerSessionOptions::rest_frame).
   int rest_frame = 0;
+  int rest_frames = 1;
   /// The read-out: physics (scale, material, taper), head axis, curvature window; and a CSV file
   /// with one row per whisker per frame (empty: none).
   rt::WhiskerReadoutOptions readout;
