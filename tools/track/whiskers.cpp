@@ -47,11 +47,12 @@ cv::Scalar id_colour(int id) {
 }
 
 // Ids in their colours, lost whiskers red, the follicle as a dot, a contact as a ring with the
-// contact force as an arrow on the whisker (40 px for the largest force of the video so far).
+// contact force as an arrow on the whisker (40 px for the largest force of the video so far) and
+// the follicle's moment against it as an arc.
 void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker,
                    const std::vector<rt::WhiskerContact>& contacts,
                    const std::vector<std::optional<rt::WhiskerSessionWhisker::ContactLoad>>& loads,
-                   double largest_force, int frame) {
+                   double largest_force, double largest_moment, int frame) {
   for (int w = 0; w < tracker.num_whiskers(); ++w) {
     const rt::Tracker& t = tracker.whisker(w);
     const rt::WhiskerFrame& r = tracker.result(w);
@@ -79,6 +80,14 @@ void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker,
       const Eigen::Vector2d tail = head - 40.0 * loads[w]->force / largest_force;
       cv::arrowedLine(img, cv::Point2d(tail.x(), tail.y()), cv::Point2d(head.x(), head.y()),
                       cv::Scalar(0, 128, 255), 2, cv::LINE_AA, 0, 0.25);
+      // The moment the follicle holds against it: an arc around the follicle, 270° for the
+      // largest moment of the video so far, turning the way the moment turns.
+      if (largest_moment > 0.0) {
+        const double sweep = -270.0 * loads[w]->moment / largest_moment;
+        const double start = std::atan2(r.tip.y() - r.follicle.y(), r.tip.x() - r.follicle.x());
+        cv::ellipse(img, cv::Point2d(r.follicle.x(), r.follicle.y()), cv::Size(10, 10),
+                    start * 180.0 / M_PI, 0.0, sweep, cv::Scalar(0, 128, 255), 2, cv::LINE_AA);
+      }
     }
   }
   cv::putText(img, "frame " + std::to_string(frame), cv::Point(8, img.rows - 10),
@@ -146,7 +155,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   std::vector<std::vector<double>> centrelines;
   std::vector<rt::WhiskerContact> contacts;
   std::vector<std::optional<rt::WhiskerSessionWhisker::ContactLoad>> loads;
-  double largest_force = 0.0;
+  double largest_force = 0.0, largest_moment = 0.0;
   std::vector<double> latencies, redetect_times, readout_times;
   std::map<std::string, int> statuses;
   cv::Mat grey, colour;
@@ -315,6 +324,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
             const auto& load = *sw.contact_load;
             loads[w] = load;
             largest_force = std::max(largest_force, load.force.norm());
+            largest_moment = std::max(largest_moment, std::abs(load.moment));
             record["contact_force_model"] = point(load.force);
             record["contact_moment_model"] = load.moment;
             record["contact_load_point"] = point(load.point);
@@ -357,7 +367,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
 
     if (overlay.enabled()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
-      draw_whiskers(colour, session.tracker(), contacts, loads, largest_force, index);
+      draw_whiskers(colour, session.tracker(), contacts, loads, largest_force, largest_moment,
+                    index);
       overlay.write(colour, index);
     }
     ++processed;
