@@ -1157,6 +1157,44 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
   return result;
 }
 
+// The scan's side of a free object's constraints moved rigidly onto the template (issue 18: the
+// person's scan in any pose). Π and the fit are rigid-invariant, but the arithmetic is not: run
+// in the scan's frame, sub-verse013 rotated by 90° about (1, 2, 3) ended 1.9 mm (1.8e-2 of the
+// diagonal) from the unrotated result at worst, since an iteration amplifies a last-bit
+// difference ~1e7-fold (docs/registration.md). So the landmark targets and ICP markers are moved
+// by the rigid fit of the landmarks' targets to their template points (else the markers' centroid
+// to the template's: the ICP alignment after it depends on the pose anyway) and rounded to
+// multiples of 2⁻²⁶ of the template's diagonal (1.5e-6 mm on a 100 mm bone), far coarser than the
+// transform's rounding (~1e-15 of the diagonal): a rotated scan then gives the same bits as the
+// unrotated one unless one of its coordinates lies within that rounding of a grid boundary
+// (for 160 points, a chance of about 1e-4).
+RigidTransform scan_to_template(const PlasticElasticEnergy& energy,
+                                const RegistrationConstraints& constraints) {
+  const Eigen::VectorXd rest = energy.rest_dofs();
+  if (constraints.landmarks.size() >= 3) {
+    std::vector<Eigen::Vector3d> from, to;
+    for (const PointConstraint& c : constraints.landmarks) {
+      from.push_back(c.target);
+      to.push_back(embedded_position(energy.tets(), c.point, rest));
+    }
+    if (const auto fit = fit_rigid_transform(from, to)) return *fit;
+  }
+  Eigen::Vector3d scan = Eigen::Vector3d::Zero(), vertices = Eigen::Vector3d::Zero();
+  std::size_t count = 0;
+  for (const PointConstraint& c : constraints.landmarks) {
+    scan += c.target;
+    ++count;
+  }
+  for (const Eigen::Vector3d& z : constraints.icp_markers) {
+    scan += z;
+    ++count;
+  }
+  if (count > 0) scan /= static_cast<double>(count);
+  for (Eigen::Index v = 0; v < rest.size() / 3; ++v) vertices += rest.segment<3>(3 * v);
+  if (rest.size() > 0) vertices /= static_cast<double>(rest.size() / 3);
+  return RigidTransform{Eigen::Matrix3d::Identity(), vertices - scan};
+}
+
 }  // namespace
 
 RegistrationResult register_attached(const PlasticElasticEnergy& energy,
@@ -1177,8 +1215,28 @@ RegistrationResult register_free(const PlasticElasticEnergy& energy,
                                  const GaussNewtonProgress& progress,
                                  const GaussNewtonCheckpointCallback& checkpoint,
                                  const GaussNewtonCheckpoint* resume) {
-  return run_registration(energy, constraints, closest_point, options, progress, checkpoint, resume,
-                          true);
+  const RigidTransform to_template = scan_to_template(energy, constraints);
+  const Eigen::VectorXd rest = energy.rest_dofs();
+  double diagonal = 0.0;
+  if (rest.size() >= 3) {
+    const auto points = rest.reshaped(3, rest.size() / 3);
+    diagonal = (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).norm();
+  }
+  const double grid = std::ldexp(1.0, (diagonal > 0.0 ? std::ilogb(diagonal) : 0) - 26);
+  const auto moved = [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return (to_template.apply(p) / grid).array().round() * grid;
+  };
+  RegistrationConstraints local = constraints;
+  for (PointConstraint& c : local.landmarks) c.target = moved(c.target);
+  for (Eigen::Vector3d& z : local.icp_markers) z = moved(z);
+  RegistrationResult result =
+      run_registration(energy, local, closest_point, options, progress, checkpoint, resume, true);
+  // Back to the scan's frame (the checkpoints stay in the template's: a resumed run moves the
+  // same constraints the same way).
+  const RigidTransform to_scan{to_template.rotation.transpose(),
+                               -(to_template.rotation.transpose() * to_template.translation)};
+  to_scan.apply_to_dofs(result.x);
+  return result;
 }
 
 void BoundaryClosestPoint::update(const Eigen::Ref<const Eigen::VectorXd>& x) {

@@ -327,7 +327,11 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy,
 /// and after every accepted step (R, t) is re-fitted to the markers in closed form (Kabsch, with
 /// closest points re-found for ICP markers) — the block-coordinate descent of §3.6. Stages
 /// landmarks → ICP markers. Options as for register_attached (beta unused).
-/// checkpoint and resume as for register_attached.
+/// The run works with the scan's points moved rigidly onto the template (the landmarks' fit, else
+/// the centroids) and rounded to 2⁻²⁶ of the template's diagonal, so that the scan in another
+/// pose gives the same result, moved (result.x is in the scan's frame).
+/// checkpoint and resume as for register_attached (a free object's checkpoint x is in that
+/// template-side frame).
 RegistrationResult register_free(const PlasticElasticEnergy& energy,
                                  const RegistrationConstraints& constraints,
                                  ClosestSurfacePoint* closest_point,
