@@ -90,6 +90,9 @@ class Registration {
   }
 
   bool free_object() const { return free_; }
+  // GaussNewtonOptions::hold_clamped_tets: the tets whose plastic state direction() holds.
+  void set_held_tets(std::vector<Eigen::Index> tets) { held_tets_ = std::move(tets); }
+  const std::vector<Eigen::Index>& held_tets() const { return held_tets_; }
 
   // The ICP markers' weight relative to alpha in the coming iteration (GaussNewtonOptions::
   // icp_weight_ramp).
@@ -232,6 +235,24 @@ class Registration {
     storage = Eigen::MatrixXd();  // not reused (the row count changed): free it now
     record.jacobian_seconds = seconds_since(start);
     if (!jacobian) return false;
+    if (!held_tets_.empty() && jacobian->Zt.cols() > 0) {
+      // Held tets: six penalty rows each (residual 0), stiff against the constraints' own rows.
+      const Eigen::Index r0 = jacobian->Zt.cols();
+      const double big = 1e3 * jacobian->Zt.rowwise().norm().maxCoeff();
+      const Eigen::Index extra = 6 * static_cast<Eigen::Index>(held_tets_.size());
+      Eigen::MatrixXd Zt(jacobian->Zt.rows(), r0 + extra);
+      Zt.leftCols(r0) = jacobian->Zt;
+      Zt.rightCols(extra).setZero();
+      Eigen::VectorXd res(r0 + extra);
+      res.head(r0) = jacobian->residual;
+      res.tail(extra).setZero();
+      for (std::size_t k = 0; k < held_tets_.size(); ++k) {
+        for (int i = 0; i < 6; ++i)
+          Zt(6 * held_tets_[k] + i, r0 + 6 * static_cast<Eigen::Index>(k) + i) = big;
+      }
+      jacobian->Zt = std::move(Zt);
+      jacobian->residual = std::move(res);
+    }
 
     start = Clock::now();
     // Gradient of eq. 8 at Δs = 0: L²s + Zᵀr.
@@ -318,6 +339,7 @@ class Registration {
   RigidNullspaceSolver free_tangent_;
   std::optional<RigidStabilisation> stabilisation_;
   RigidFrame frame_;
+  std::vector<Eigen::Index> held_tets_;  // tets whose s the next direction() keeps
   double diagonal_ = 1.0;  // of the template's bounding box: the scale of "no rigid motion left"
   double icp_weight_scale_ = 1.0;
   bool icp_point_to_plane_ = false;
@@ -1043,6 +1065,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
       bool full_step_good = false;
       bool linear_failed = false;
       Clock::time_point search_start = Clock::now();
+      r.set_held_tets({});
       for (int trial = 0;; ++trial) {
         if (!r.direction(stage, *terms, damping, step, record, &error)) {
           linear_failed = true;
@@ -1055,6 +1078,25 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         Eigen::VectorXd target = r.s + step;
         record.clamped_tets = static_cast<int>(
             clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+        if (record.clamped_tets > 0 && options.hold_clamped_tets && !ramping) {
+          // The clamped tets join the held ones (for this iteration's further trials too), and
+          // the step is solved again (GaussNewtonOptions::hold_clamped_tets).
+          std::vector<Eigen::Index> held = r.held_tets();
+          const Eigen::VectorXd unclamped = r.s + step;
+          for (Eigen::Index t = 0; t < r.energy().num_tets(); ++t) {
+            if (target.segment<6>(6 * t) != unclamped.segment<6>(6 * t) &&
+                std::find(held.begin(), held.end(), t) == held.end())
+              held.push_back(t);
+          }
+          r.set_held_tets(std::move(held));
+          if (!r.direction(stage, *terms, damping, step, record, &error)) {
+            linear_failed = true;
+            break;
+          }
+          target = r.s + step;
+          record.clamped_tets = static_cast<int>(
+              clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+        }
         record.damping = damping;
         trial_dx = r.predicted_dx();
         direction = step;

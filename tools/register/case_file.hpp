@@ -127,6 +127,11 @@ struct RegistrationCase {
     int damped_step_trials = 4;
     /// offline::GaussNewtonOptions::predictor_warm_start; default true.
     bool predictor_warm_start = true;
+    /// offline::GaussNewtonOptions::hold_clamped_tets ("solver": {"hold_clamped_tets": B});
+    /// default true: the three vertebrae's ICP stages end by the marker tolerance (013 had run to
+    /// the iteration limit, 023 stalled at μ ≈ 1e20 with landmarks 0.34 mm off;
+    /// docs/registration.md).
+    bool hold_clamped_tets = true;
     /// offline::GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01). With 0.01
     /// the vertebrae met their markers by squashing tets 100-fold, and sub-verse023's ICP stage
     /// stalled at 0.46 mm mean (3.5 mm max) marker error: no step was found whose equilibrium

@@ -514,6 +514,7 @@ int run(const RunRequest& request) {
   options.landmark_stage = c.weights.landmark_stage;
   options.damped_step_trials = c.solver.damped_step_trials;
   options.predictor_warm_start = c.solver.predictor_warm_start;
+  options.hold_clamped_tets = c.solver.hold_clamped_tets;
   options.eigenvalue_floor = c.solver.eigenvalue_floor;
   options.equilibrium.cholesky_method = c.solver.cholesky;
   options.woodbury.cholesky_method = c.solver.cholesky;
@@ -549,6 +550,7 @@ int run(const RunRequest& request) {
                                {"landmark_stage", options.landmark_stage},
                                {"damped_step_trials", options.damped_step_trials},
                                {"predictor_warm_start", options.predictor_warm_start},
+                               {"hold_clamped_tets", options.hold_clamped_tets},
                                {"eigenvalue_floor", tools::hex_double(options.eigenvalue_floor)},
                                {"cholesky", offline::to_string(c.solver.cholesky)}};
   for (const double f : options.icp_weight_ramp) {
