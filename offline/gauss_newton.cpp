@@ -90,6 +90,9 @@ class Registration {
   }
 
   bool free_object() const { return free_; }
+  // GaussNewtonOptions::hold_clamped_tets: the tets whose plastic state direction() holds.
+  void set_held_tets(std::vector<Eigen::Index> tets) { held_tets_ = std::move(tets); }
+  const std::vector<Eigen::Index>& held_tets() const { return held_tets_; }
 
   // The ICP markers' weight relative to alpha in the coming iteration (GaussNewtonOptions::
   // icp_weight_ramp).
@@ -232,6 +235,24 @@ class Registration {
     storage = Eigen::MatrixXd();  // not reused (the row count changed): free it now
     record.jacobian_seconds = seconds_since(start);
     if (!jacobian) return false;
+    if (!held_tets_.empty() && jacobian->Zt.cols() > 0) {
+      // Held tets: six penalty rows each (residual 0), stiff against the constraints' own rows.
+      const Eigen::Index r0 = jacobian->Zt.cols();
+      const double big = 1e3 * jacobian->Zt.rowwise().norm().maxCoeff();
+      const Eigen::Index extra = 6 * static_cast<Eigen::Index>(held_tets_.size());
+      Eigen::MatrixXd Zt(jacobian->Zt.rows(), r0 + extra);
+      Zt.leftCols(r0) = jacobian->Zt;
+      Zt.rightCols(extra).setZero();
+      Eigen::VectorXd res(r0 + extra);
+      res.head(r0) = jacobian->residual;
+      res.tail(extra).setZero();
+      for (std::size_t k = 0; k < held_tets_.size(); ++k) {
+        for (int i = 0; i < 6; ++i)
+          Zt(6 * held_tets_[k] + i, r0 + 6 * static_cast<Eigen::Index>(k) + i) = big;
+      }
+      jacobian->Zt = std::move(Zt);
+      jacobian->residual = std::move(res);
+    }
 
     start = Clock::now();
     // Gradient of eq. 8 at Δs = 0: L²s + Zᵀr.
@@ -318,6 +339,7 @@ class Registration {
   RigidNullspaceSolver free_tangent_;
   std::optional<RigidStabilisation> stabilisation_;
   RigidFrame frame_;
+  std::vector<Eigen::Index> held_tets_;  // tets whose s the next direction() keeps
   double diagonal_ = 1.0;  // of the template's bounding box: the scale of "no rigid motion left"
   double icp_weight_scale_ = 1.0;
   bool icp_point_to_plane_ = false;
@@ -1043,6 +1065,7 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
       bool full_step_good = false;
       bool linear_failed = false;
       Clock::time_point search_start = Clock::now();
+      r.set_held_tets({});
       for (int trial = 0;; ++trial) {
         if (!r.direction(stage, *terms, damping, step, record, &error)) {
           linear_failed = true;
@@ -1055,6 +1078,25 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         Eigen::VectorXd target = r.s + step;
         record.clamped_tets = static_cast<int>(
             clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+        if (record.clamped_tets > 0 && options.hold_clamped_tets && !ramping) {
+          // The clamped tets join the held ones (for this iteration's further trials too), and
+          // the step is solved again (GaussNewtonOptions::hold_clamped_tets).
+          std::vector<Eigen::Index> held = r.held_tets();
+          const Eigen::VectorXd unclamped = r.s + step;
+          for (Eigen::Index t = 0; t < r.energy().num_tets(); ++t) {
+            if (target.segment<6>(6 * t) != unclamped.segment<6>(6 * t) &&
+                std::find(held.begin(), held.end(), t) == held.end())
+              held.push_back(t);
+          }
+          r.set_held_tets(std::move(held));
+          if (!r.direction(stage, *terms, damping, step, record, &error)) {
+            linear_failed = true;
+            break;
+          }
+          target = r.s + step;
+          record.clamped_tets = static_cast<int>(
+              clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+        }
         record.damping = damping;
         trial_dx = r.predicted_dx();
         direction = step;
@@ -1157,6 +1199,44 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
   return result;
 }
 
+// The scan's side of a free object's constraints moved rigidly onto the template (issue 18: the
+// person's scan in any pose). Π and the fit are rigid-invariant, but the arithmetic is not: run
+// in the scan's frame, sub-verse013 rotated by 90° about (1, 2, 3) ended 1.9 mm (1.8e-2 of the
+// diagonal) from the unrotated result at worst, since an iteration amplifies a last-bit
+// difference ~1e7-fold (docs/registration.md). So the landmark targets and ICP markers are moved
+// by the rigid fit of the landmarks' targets to their template points (else the markers' centroid
+// to the template's: the ICP alignment after it depends on the pose anyway) and rounded to
+// multiples of 2⁻²⁶ of the template's diagonal (1.5e-6 mm on a 100 mm bone), far coarser than the
+// transform's rounding (~1e-15 of the diagonal): a rotated scan then gives the same bits as the
+// unrotated one unless one of its coordinates lies within that rounding of a grid boundary
+// (for 160 points, a chance of about 1e-4).
+RigidTransform scan_to_template(const PlasticElasticEnergy& energy,
+                                const RegistrationConstraints& constraints) {
+  const Eigen::VectorXd rest = energy.rest_dofs();
+  if (constraints.landmarks.size() >= 3) {
+    std::vector<Eigen::Vector3d> from, to;
+    for (const PointConstraint& c : constraints.landmarks) {
+      from.push_back(c.target);
+      to.push_back(embedded_position(energy.tets(), c.point, rest));
+    }
+    if (const auto fit = fit_rigid_transform(from, to)) return *fit;
+  }
+  Eigen::Vector3d scan = Eigen::Vector3d::Zero(), vertices = Eigen::Vector3d::Zero();
+  std::size_t count = 0;
+  for (const PointConstraint& c : constraints.landmarks) {
+    scan += c.target;
+    ++count;
+  }
+  for (const Eigen::Vector3d& z : constraints.icp_markers) {
+    scan += z;
+    ++count;
+  }
+  if (count > 0) scan /= static_cast<double>(count);
+  for (Eigen::Index v = 0; v < rest.size() / 3; ++v) vertices += rest.segment<3>(3 * v);
+  if (rest.size() > 0) vertices /= static_cast<double>(rest.size() / 3);
+  return RigidTransform{Eigen::Matrix3d::Identity(), vertices - scan};
+}
+
 }  // namespace
 
 RegistrationResult register_attached(const PlasticElasticEnergy& energy,
@@ -1177,8 +1257,28 @@ RegistrationResult register_free(const PlasticElasticEnergy& energy,
                                  const GaussNewtonProgress& progress,
                                  const GaussNewtonCheckpointCallback& checkpoint,
                                  const GaussNewtonCheckpoint* resume) {
-  return run_registration(energy, constraints, closest_point, options, progress, checkpoint, resume,
-                          true);
+  const RigidTransform to_template = scan_to_template(energy, constraints);
+  const Eigen::VectorXd rest = energy.rest_dofs();
+  double diagonal = 0.0;
+  if (rest.size() >= 3) {
+    const auto points = rest.reshaped(3, rest.size() / 3);
+    diagonal = (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).norm();
+  }
+  const double grid = std::ldexp(1.0, (diagonal > 0.0 ? std::ilogb(diagonal) : 0) - 26);
+  const auto moved = [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return (to_template.apply(p) / grid).array().round() * grid;
+  };
+  RegistrationConstraints local = constraints;
+  for (PointConstraint& c : local.landmarks) c.target = moved(c.target);
+  for (Eigen::Vector3d& z : local.icp_markers) z = moved(z);
+  RegistrationResult result =
+      run_registration(energy, local, closest_point, options, progress, checkpoint, resume, true);
+  // Back to the scan's frame (the checkpoints stay in the template's: a resumed run moves the
+  // same constraints the same way).
+  const RigidTransform to_scan{to_template.rotation.transpose(),
+                               -(to_template.rotation.transpose() * to_template.translation)};
+  to_scan.apply_to_dofs(result.x);
+  return result;
 }
 
 void BoundaryClosestPoint::update(const Eigen::Ref<const Eigen::VectorXd>& x) {

@@ -198,6 +198,14 @@ struct GaussNewtonOptions {
   /// x. false (the default): from x, as the paper. On the vertebrae the first ICP steps' solves
   /// failed from x for every damping up to 100.
   bool predictor_warm_start = false;
+  /// When a step clamps tets at the eigenvalue floor, solve for the step again with those tets'
+  /// plastic state held (six penalty rows each in Z, 1e3 times its largest row norm: an active
+  /// set), and search along that step; not in the ICP stage's ramp and point-to-plane phase,
+  /// where 100-240 tets clamp per step and the extra rows made a Woodbury solve take up to 34 s.
+  /// The clamped step of the coupled system (L² links neighbouring tets) need not descend even for
+  /// large damping: on the vertebrae the clamped steps stalled at μ ≈ 1e20 or ran to the
+  /// iteration limit. false (the default): clamp and search, as the paper.
+  bool hold_clamped_tets = false;
   double damping_start = 1.0;
   double damping_growth = 10.0;
   /// Equilibrium solves (line search, initial fit).
@@ -327,7 +335,11 @@ RegistrationResult register_attached(const PlasticElasticEnergy& energy,
 /// and after every accepted step (R, t) is re-fitted to the markers in closed form (Kabsch, with
 /// closest points re-found for ICP markers) — the block-coordinate descent of §3.6. Stages
 /// landmarks → ICP markers. Options as for register_attached (beta unused).
-/// checkpoint and resume as for register_attached.
+/// The run works with the scan's points moved rigidly onto the template (the landmarks' fit, else
+/// the centroids) and rounded to 2⁻²⁶ of the template's diagonal, so that the scan in another
+/// pose gives the same result, moved (result.x is in the scan's frame).
+/// checkpoint and resume as for register_attached (a free object's checkpoint x is in that
+/// template-side frame).
 RegistrationResult register_free(const PlasticElasticEnergy& energy,
                                  const RegistrationConstraints& constraints,
                                  ClosestSurfacePoint* closest_point,

@@ -8,7 +8,8 @@
 //     moved far away (120° about an oblique axis, 3 lengths away) is the "scan"; surface vertices
 //     as landmarks; the registration recovers the surface;
 // (c) the same case with the scan rotated by 0°, 90° and 180° converges to the same shape up to
-//     the rigid motion.
+//     the rigid motion: register_free works with the scan moved onto the template, so the three
+//     runs do the same arithmetic (2e-16 m apart; 6e-10 m when each ran in its scan's frame).
 
 #include <gtest/gtest.h>
 
@@ -216,7 +217,7 @@ TEST(RegisterFree, SameShapeWhateverTheScanRotation) {
   for (std::size_t k = 1; k < shapes.size(); ++k) {
     const double d = shape_difference(bar, shapes[k], shapes[0]);
     std::cout << "shape difference vs 0 deg: " << d << " m\n";
-    EXPECT_LT(d, 1e-4 * diagonal) << k;
+    EXPECT_LT(d, 1e-12 * diagonal) << k;
   }
 }
 

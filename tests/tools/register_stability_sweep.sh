@@ -14,10 +14,8 @@
 # something machine-dependent crept back in.
 #
 # The case is a free object like the vertebrae of ../shared/data/vertebrae, built from the demo
-# case (`sinew-register --make-demo-case`: a capsule stretched and bent by a known deformation):
-# its attachments dropped, eight landmarks taken from template vertices and their known images,
-# its 80 ICP markers, the tool's defaults otherwise (damped steps, predictor warm start,
-# landmarks in the ICP stage), a coarse mesh and 12 iterations so that each run takes seconds.
+# case by make_free_demo_case.py (its attachments dropped, eight landmarks, its 80 ICP markers, a
+# coarse mesh and 12 iterations so that each run takes seconds).
 #
 #   register_stability_sweep.sh SINEW_REGISTER [EXTRA_SOLVER_JSON]
 #
@@ -40,27 +38,7 @@ fail() {
 
 "$tool" --make-demo-case "$work/demo" >/dev/null || fail "--make-demo-case failed"
 
-python3 - "$work/demo" "$extra_solver" <<'PY'
-import json, sys
-demo, extra = sys.argv[1], json.loads(sys.argv[2])
-
-def obj_vertices(path):
-    return [tuple(map(float, l.split()[1:4])) for l in open(path) if l.startswith("v ")]
-
-template = obj_vertices(demo + "/template.obj")
-truth = obj_vertices(demo + "/truth_surface.obj")
-assert len(template) == len(truth), "template and truth differ in vertex count"
-# Eight landmarks spread over the vertex list (the capsule's rings run along x).
-picks = [round(i * (len(template) - 1) / 7) for i in range(8)]
-case = json.load(open(demo + "/case.json"))
-del case["attachments"]
-case["landmarks"] = [{"template": list(template[i]), "target": list(truth[i]),
-                      "label": "L%d" % n} for n, i in enumerate(picks)]
-case["mesh"] = {"cell_size_fraction": 0.12, "facet_distance_fraction": 0.008}
-case["stop"] = {"max_iterations": 12}
-case.setdefault("solver", {}).update(extra)
-json.dump(case, open(demo + "/free_case.json", "w"), indent=1)
-PY
+python3 "$(dirname "$0")/make_free_demo_case.py" "$work/demo" "$extra_solver"
 
 cpus=$(nproc)
 run() {  # run NAME CORETYPE THREADS

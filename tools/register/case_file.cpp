@@ -323,7 +323,8 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
   if (root.has("solver")) {
     const JsonCursor v = root.at("solver");
-    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor", "cholesky"});
+    v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor", "cholesky",
+                   "hold_clamped_tets"});
     if (v.has("cholesky")) {
       const std::string method = v.at("cholesky").string();
       if (method == "auto") {
@@ -344,6 +345,8 @@ RegistrationCase read_registration_case(const std::string& path) {
     }
     if (v.has("predictor_warm_start"))
       c.solver.predictor_warm_start = v.at("predictor_warm_start").boolean();
+    if (v.has("hold_clamped_tets"))
+      c.solver.hold_clamped_tets = v.at("hold_clamped_tets").boolean();
     if (v.has("damped_step_trials"))
       c.solver.damped_step_trials = integer_in(v.at("damped_step_trials"), 0, 100);
   }

@@ -115,6 +115,15 @@ struct Normalisation {
     const double grid = std::ldexp(1.0, 40);
     return ((points.rowwise() - centre) / scale * grid).array().round() / grid;
   }
+  // The scan's points of a free object are not rounded here: register_free moves them onto the
+  // template and rounds them there. Rounded in the scan's own frame, the same points in another
+  // pose of the scan differ by up to half a step (5e-13) after that move and cross register_free's
+  // grid far more often (with a 2⁻³⁰ grid there, sub-verse013 rotated by 180° became another run,
+  // 7e-3 of the diagonal away).
+  Eigen::MatrixXd scan_to_frame(const Eigen::MatrixXd& points, bool free_object) const {
+    if (!free_object) return to_frame(points);
+    return (points.rowwise() - centre) / scale;
+  }
   Eigen::MatrixXd to_user(const Eigen::MatrixXd& points) const {
     return (points * scale).rowwise() + centre;
   }
@@ -400,7 +409,7 @@ int run(const RunRequest& request) {
   if (c.landmarks.size() > 0) {
     const auto points = embed(*locator, frame.to_frame(c.landmarks.template_points), "landmarks",
                               c.landmarks.source, frame.scale, u, &worst);
-    const Eigen::MatrixXd targets = frame.to_frame(c.landmarks.target_points);
+    const Eigen::MatrixXd targets = frame.scan_to_frame(c.landmarks.target_points, free_object);
     for (std::size_t i = 0; i < points.size(); ++i) {
       offline::PointConstraint pc;
       pc.kind = offline::ConstraintKind::kLandmark;
@@ -409,7 +418,7 @@ int run(const RunRequest& request) {
       constraints.landmarks.push_back(pc);
     }
   }
-  const Eigen::MatrixXd markers = frame.to_frame(c.icp_markers);
+  const Eigen::MatrixXd markers = frame.scan_to_frame(c.icp_markers, free_object);
   for (Eigen::Index i = 0; i < markers.rows(); ++i)
     constraints.icp_markers.push_back(markers.row(i).transpose());
 
@@ -505,6 +514,7 @@ int run(const RunRequest& request) {
   options.landmark_stage = c.weights.landmark_stage;
   options.damped_step_trials = c.solver.damped_step_trials;
   options.predictor_warm_start = c.solver.predictor_warm_start;
+  options.hold_clamped_tets = c.solver.hold_clamped_tets;
   options.eigenvalue_floor = c.solver.eigenvalue_floor;
   options.equilibrium.cholesky_method = c.solver.cholesky;
   options.woodbury.cholesky_method = c.solver.cholesky;
@@ -513,6 +523,9 @@ int run(const RunRequest& request) {
   // What a checkpoint must match to be resumed here: mode, mesh, markers, output surface, options.
   nlohmann::json identification;
   identification["mode"] = free_object ? "free" : "attached";
+  // A free object's checkpointed state is in the template's frame since issue 18 (register_free
+  // moves the scan onto the template); an older checkpoint's is in the scan's.
+  if (free_object) identification["free_object_frame"] = "template";
   identification["tet_vertices"] = rest.rows();
   identification["tets"] = tets.rows();
   identification["mesh_hash"] = hex(hash_matrix(tets, hash_matrix(rest)));
@@ -537,6 +550,7 @@ int run(const RunRequest& request) {
                                {"landmark_stage", options.landmark_stage},
                                {"damped_step_trials", options.damped_step_trials},
                                {"predictor_warm_start", options.predictor_warm_start},
+                               {"hold_clamped_tets", options.hold_clamped_tets},
                                {"eigenvalue_floor", tools::hex_double(options.eigenvalue_floor)},
                                {"cholesky", offline::to_string(c.solver.cholesky)}};
   for (const double f : options.icp_weight_ramp) {
