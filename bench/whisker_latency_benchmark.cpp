@@ -22,6 +22,7 @@
 #include "rt/load_fit.hpp"
 #include "rt/whisker/detection.hpp"
 #include "rt/whisker/readout.hpp"
+#include "rt/whisker/session.hpp"
 #include "rt/whisker/whisker_tracker.hpp"
 #include "tests/support/whisker_render.hpp"
 
@@ -107,13 +108,9 @@ void BM_TenWhiskersFrame(benchmark::State& state) {
           const rt::Tracker& t = tracker.whisker(w);
           readouts.emplace_back(t.model(), rt::WhiskerReadoutOptions{});
           readouts.back().set_rest(t.state());
-          common::BeamDescription d = t.model().description();
-          d.rest_positions = t.model().current_positions(t.state());
-          d.fixed.clear();
-          d.clamp(0);
           rt::LoadFitOptions lo;
           lo.max_load_points = 1;
-          fits.emplace_back(d, lo);
+          fits.emplace_back(rt::contact_fit_beam(t, t.state()), lo);
           rest.push_back(t.state());
           target.push_back(t.state());
         }

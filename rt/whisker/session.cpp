@@ -133,6 +133,14 @@ std::string WhiskerSession::process(const ImageView& frame) {
   return {};
 }
 
+common::BeamDescription contact_fit_beam(const Tracker& whisker, const Eigen::VectorXd& rest) {
+  common::BeamDescription d = whisker.model().description();
+  d.rest_positions = whisker.model().current_positions(rest);
+  d.fixed.clear();
+  d.clamp(0);
+  return d;
+}
+
 void WhiskerSession::accumulate_rest(int w) {
   const Tracker& t = tracker_->whisker(w);
   const Eigen::VectorXd& u = t.state();
@@ -173,15 +181,9 @@ void WhiskerSession::take_rest(int w, const Eigen::VectorXd& u) {
   contact_target_[w].setZero(u.size());
   rest_taken_[w] = 1;
   if (!options_.contact_load) return;
-  // The whisker's beam with the tracked rest shape as its reference, clamped at the follicle
-  // (which the fit holds at its tracked pose).
-  common::BeamDescription d = t.model().description();
-  d.rest_positions = t.model().current_positions(u);
-  d.fixed.clear();
-  d.clamp(0);
   LoadFitOptions o;
   o.max_load_points = 1;
-  contact_fit_[w].emplace(d, o);
+  contact_fit_[w].emplace(contact_fit_beam(t, u), o);
   if (!contact_fit_[w]->valid()) contact_fit_[w].reset();
 }
 

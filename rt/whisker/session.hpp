@@ -76,6 +76,11 @@ struct WhiskerSessionWhisker {
   std::optional<ContactLoad> contact_load;
 };
 
+/// The beam a whisker's contact load is fitted on: the whisker's own, with its shape at the rest
+/// state `rest` as the reference, clamped at the follicle (which the fit holds at its tracked
+/// pose).
+common::BeamDescription contact_fit_beam(const Tracker& whisker, const Eigen::VectorXd& rest);
+
 class WhiskerSession {
  public:
   explicit WhiskerSession(WhiskerSessionOptions options);
