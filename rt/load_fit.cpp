@@ -266,10 +266,12 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
   return false;
 }
 
-bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations) {
+bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations,
+                     bool* equilibrium) {
   const int p = params_;
   const auto& fixed = model_.fixed_mask();
   bool ok = false;
+  *equilibrium = false;
   for (int it = 0; it < options_.max_iterations; ++it) {
     ++*iterations;
     rhs_.setZero();
@@ -278,8 +280,10 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
     if (!s.converged()) {
       // Start over from the unloaded reference next time.
       reset();
+      *equilibrium = false;
       return false;
     }
+    *equilibrium = true;
     loads_prev_ = rhs_;
     residual(tracked, u_);
     if (ok) break;  // the previous update was negligible: this equilibrium is the answer
@@ -299,6 +303,11 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
     change_.noalias() = jacobian_.leftCols(p) * dq_.head(p);
     const double change = change_.cwiseAbs().maxCoeff();
     if (change > kMaxStepPx) dq_.head(p) *= kMaxStepPx / change;
+    if (it + 1 == options_.max_iterations && !(change < kConvergedPx)) {
+      // Out of iterations: keep the loads of the last equilibrium rather than an update no
+      // equilibrium was solved for.
+      break;
+    }
     q_.head(p) += dq_.head(p);
     ok = change < kConvergedPx;
   }
@@ -317,6 +326,7 @@ LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, co
   q_backup_ = q_;
   int iterations = 0;
   bool ok = options_.coupled && coupled(tracked, &iterations);
+  bool equilibrium = ok;
   summary.coupled = ok;
   if (!ok) {
     if (options_.coupled) {
@@ -325,9 +335,10 @@ LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, co
       take_supports(tracked, u_);
     }
     iterations = 0;
-    ok = nested(tracked, &iterations);
+    ok = nested(tracked, &iterations, &equilibrium);
   }
   summary.converged = ok;
+  summary.equilibrium = equilibrium;
   summary.iterations = iterations;
   summary.rms_px = std::sqrt(residual_.squaredNorm() / n_);
   return summary;

@@ -48,9 +48,13 @@ struct LoadFitOptions {
 
 struct LoadFitSummary {
   bool converged = false;  ///< a step moved no node by more than 1e-3 px
-  bool coupled = false;    ///< the coupled method gave the answer
-  int iterations = 0;      ///< Gauss–Newton iterations of the method that answered
-  double rms_px = 0.0;     ///< RMS misfit between the fitted equilibrium and the tracked nodes
+  /// state() is the beam's equilibrium under loads(): an answer, converged or not within
+  /// max_iterations. False: the fit failed (no equilibrium was found) and loads() and state()
+  /// mean nothing.
+  bool equilibrium = false;
+  bool coupled = false;  ///< the coupled method gave the answer
+  int iterations = 0;    ///< Gauss–Newton iterations of the method that answered
+  double rms_px = 0.0;   ///< RMS misfit between the fitted equilibrium and the tracked nodes
 };
 
 class LoadFit {
@@ -85,7 +89,8 @@ class LoadFit {
 
  private:
   bool coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations);
-  bool nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations);
+  // Sets *equilibrium when it ends at an equilibrium of its loads, converged or not.
+  bool nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations, bool* equilibrium);
   bool step(bool robust);
   void residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const Eigen::VectorXd& u);
   // f += sign · E q: this call's loads at their dofs.

@@ -35,6 +35,7 @@ std::optional<std::string> WhiskerSessionOptions::validate() const {
   if (auto err = detection.validate()) return "detection: " + *err;
   if (auto err = tracker.validate()) return *err;
   if (auto err = readout.validate()) return "read-out: " + *err;
+  if (auto err = contact_fit.validate()) return "contact fit: " + *err;
   if (rest_frame < 0) {
     return "options.rest_frame = " + std::to_string(rest_frame) + ": must be >= 0";
   }
@@ -181,7 +182,7 @@ void WhiskerSession::take_rest(int w, const Eigen::VectorXd& u) {
   contact_target_[w].setZero(u.size());
   rest_taken_[w] = 1;
   if (!options_.contact_load) return;
-  LoadFitOptions o;
+  LoadFitOptions o = options_.contact_fit;
   o.max_load_points = 1;
   contact_fit_[w].emplace(contact_fit_beam(t, u), o);
   if (!contact_fit_[w]->valid()) contact_fit_[w].reset();
@@ -206,6 +207,10 @@ WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const Whis
   WhiskerSessionWhisker::ContactLoad load;
   load.converged = s.converged;
   load.rms_px = s.rms_px;
+  // A fit that found no equilibrium has no load to report (e.g. the tracked whisker ran onto the
+  // pole, and no force at the contact bends the beam that far): not the reset fit's zero.
+  load.equilibrium = s.equilibrium;
+  if (!s.equilibrium) return load;
   load.force = fit.loads()[0] * Eigen::Vector2d(normal[0], normal[1]);
   const Eigen::Matrix2Xd& X = fit.model().rest_positions();
   load.point = X.col(point) + fit.state().segment<2>(3 * point);

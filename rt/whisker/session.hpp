@@ -6,6 +6,7 @@
 /// (WhiskerReadoutModel, the first frame's fits being the whiskers at rest) and the contact with
 /// the objects the detection saw. Set-up and detection allocate; the tracking does not.
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -43,6 +44,8 @@ struct WhiskerSessionOptions {
   int rest_frames = 1;
   /// Fit the contact load on frames in contact (contact_load below).
   bool contact_load = true;
+  /// The contact-load fit's options (one load point: max_load_points is set to 1).
+  LoadFitOptions contact_fit;
 
   std::optional<std::string> validate() const;
 };
@@ -60,11 +63,16 @@ struct WhiskerSessionWhisker {
   /// subdivided 4×: the load point moves with the contact in steps of a quarter element). For a
   /// whisker in contact after its rest frame. Model units: the trackers' section (E, width h in
   /// pixels), lengths in pixels.
+  /// When the fit found no equilibrium there is no load: force, point and moment are NaN (empty
+  /// in the CSV, null in JSON). A load whose fit ran out of iterations is reported with
+  /// converged false (LoadFitSummary).
   struct ContactLoad {
+    static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
     bool converged = false;
-    Eigen::Vector2d force = Eigen::Vector2d::Zero();  ///< on the whisker, image axes
-    Eigen::Vector2d point = Eigen::Vector2d::Zero();  ///< where it acts (the fit's node)
-    double moment = 0.0;  ///< (point − follicle) × force: the contact's moment about the follicle
+    bool equilibrium = false;  ///< a load was found (LoadFitSummary::equilibrium)
+    Eigen::Vector2d force = Eigen::Vector2d::Constant(kNaN);  ///< on the whisker, image axes
+    Eigen::Vector2d point = Eigen::Vector2d::Constant(kNaN);  ///< where it acts (the fit's node)
+    double moment = kNaN;  ///< (point − follicle) × force: the contact's moment about the follicle
     double rms_px = 0.0;  ///< the fitted equilibrium's misfit to the tracked nodes
     /// The quasi-static estimate labs compute from curvature (Pammer et al. 2013): a force along
     /// the normal at the contact whose moment at the curvature window's centre p is E·I·Δκ there,

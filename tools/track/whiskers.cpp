@@ -322,7 +322,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
           if (sw.contact_load) {
             // Model units (the trackers' section, pixels) until the load is put in SI.
             const auto& load = *sw.contact_load;
-            loads[w] = load;
+            if (load.equilibrium) loads[w] = load;  // the overlay draws found loads only
             largest_force = std::max(largest_force, load.force.norm());
             largest_moment = std::max(largest_moment, std::abs(load.moment));
             record["contact_force_model"] = point(load.force);
