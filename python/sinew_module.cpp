@@ -210,13 +210,16 @@ class PyWhiskers {
         }
       }
       if (sw.contact_load) {
-        d["contact_force_model"] = xy(sw.contact_load->force);
-        d["contact_moment_model"] = sw.contact_load->moment;
+        // Newtons and newton-metres with a scale, else model units (as the CLI's columns).
+        const char* force_key = si_ ? "contact_force_N" : "contact_force_model";
+        const char* moment_key = si_ ? "contact_moment_N_m" : "contact_moment_model";
+        d[force_key] = xy(sw.contact_load->force);
+        d[moment_key] = sw.contact_load->moment;
         d["contact_load_point"] = xy(sw.contact_load->point);
         d["contact_load_rms_px"] = sw.contact_load->rms_px;
         d["contact_load_converged"] = sw.contact_load->converged;
-        d["pammer_force_model"] = sw.contact_load->pammer_force;
-        d["pammer_moment_model"] = sw.contact_load->pammer_moment;
+        d[si_ ? "pammer_force_N" : "pammer_force_model"] = sw.contact_load->pammer_force;
+        d[si_ ? "pammer_moment_N_m" : "pammer_moment_model"] = sw.contact_load->pammer_moment;
       }
       whiskers.append(d);
     }

@@ -41,6 +41,16 @@ std::optional<std::string> WhiskerPhysics::validate() const {
   return std::nullopt;
 }
 
+common::BeamSection WhiskerPhysics::section_at(double s_mm, double whisker_length_mm) const {
+  const double length = length_mm > 0.0 ? length_mm : whisker_length_mm;
+  const double t = length > 0.0 ? std::clamp(s_mm / length, 0.0, 1.0) : 0.0;
+  const double r = 1e-6 * (base_radius_um + (tip_radius_um - base_radius_um) * t);
+  const double E = young_modulus_gpa * 1e9;
+  const double G = E / (2.0 * (1.0 + poisson_ratio));
+  const double area = M_PI * r * r;
+  return {E * area, 0.9 * G * area, E * M_PI * r * r * r * r / 4.0};
+}
+
 std::optional<std::string> WhiskerReadoutOptions::validate() const {
   if (auto err = physics.validate()) return err;
   if (!std::isfinite(axis_angle_deg))
@@ -85,15 +95,8 @@ WhiskerReadoutModel::WhiskerReadoutModel(const common::BeamModel& model,
     // Lengths in metres, the first element's section at its midpoint's radius.
     length_unit_ = ph.mm_per_px * 1e-3;
     curvature_unit_ = 1.0 / ph.mm_per_px;  // 1/px → 1/mm
-    const double length_mm = ph.length_mm > 0.0 ? ph.length_mm : length_px * ph.mm_per_px;
-    const double s_mid_mm = 0.5 * model.element(0).length * ph.mm_per_px;
-    const double t = std::clamp(s_mid_mm / length_mm, 0.0, 1.0);
-    const double r = 1e-6 * (ph.base_radius_um + (ph.tip_radius_um - ph.base_radius_um) * t);
-    const double E = ph.young_modulus_gpa * 1e9;
-    const double G = E / (2.0 * (1.0 + ph.poisson_ratio));
-    const double area = M_PI * r * r;
-    // Shear correction 0.9 for a solid circular section.
-    section_ = {E * area, 0.9 * G * area, E * M_PI * r * r * r * r / 4.0};
+    section_ =
+        ph.section_at(0.5 * model.element(0).length * ph.mm_per_px, length_px * ph.mm_per_px);
     reference_ = common::make_beam_element_reference(rest_.col(0) * length_unit_,
                                                      rest_.col(1) * length_unit_);
   } else {
@@ -110,10 +113,7 @@ WhiskerReadoutModel::WhiskerReadoutModel(const common::BeamModel& model,
     length_px_[e] = model.element(e).length;
     midpoint_[e] = (arc_[e] + 0.5 * length_px_[e]) * length_unit_;
     if (ph.si()) {
-      const double length_mm = ph.length_mm > 0.0 ? ph.length_mm : length_px * ph.mm_per_px;
-      const double t = std::clamp(midpoint_[e] * 1e3 / length_mm, 0.0, 1.0);
-      const double r = 1e-6 * (ph.base_radius_um + (ph.tip_radius_um - ph.base_radius_um) * t);
-      bending_[e] = ph.young_modulus_gpa * 1e9 * M_PI * r * r * r * r / 4.0;
+      bending_[e] = ph.section_at(midpoint_[e] * 1e3, length_px * ph.mm_per_px).EI;
     } else {
       bending_[e] = model.description().sections[e].EI;
     }

@@ -50,6 +50,10 @@ struct WhiskerPhysics {
   double length_mm = 0.0;
 
   bool si() const { return mm_per_px > 0.0; }
+  /// The tapered cone's section at arc length s_mm from the follicle of a whisker of length
+  /// length_mm (the taper's: length_mm above if set): EA and GA in newtons (shear correction 0.9
+  /// of a solid circle), EI in N·m².
+  common::BeamSection section_at(double s_mm, double whisker_length_mm) const;
   std::optional<std::string> validate() const;
 };
 

@@ -134,12 +134,30 @@ std::string WhiskerSession::process(const ImageView& frame) {
   return {};
 }
 
-common::BeamDescription contact_fit_beam(const Tracker& whisker, const Eigen::VectorXd& rest) {
-  common::BeamDescription d = whisker.model().description();
-  d.rest_positions = whisker.model().current_positions(rest);
+common::BeamDescription contact_fit_beam(const common::BeamModel& tracked,
+                                         const Eigen::VectorXd& rest,
+                                         const WhiskerPhysics& physics) {
+  common::BeamDescription d = tracked.description();
+  d.rest_positions = tracked.current_positions(rest);
   d.fixed.clear();
   d.clamp(0);
+  if (physics.si()) {
+    const double m_per_px = physics.mm_per_px * 1e-3;
+    const double length_mm = tracked.total_length() * physics.mm_per_px;
+    double s_px = 0.0;
+    for (int e = 0; e < tracked.num_elements(); ++e) {
+      const double le = tracked.element(e).length;
+      d.sections[e] = physics.section_at((s_px + 0.5 * le) * physics.mm_per_px, length_mm);
+      d.sections[e].EI /= m_per_px * m_per_px;
+      s_px += le;
+    }
+  }
   return d;
+}
+
+common::BeamDescription contact_fit_beam(const Tracker& whisker, const Eigen::VectorXd& rest,
+                                         const WhiskerPhysics& physics) {
+  return contact_fit_beam(whisker.model(), rest, physics);
 }
 
 void WhiskerSession::accumulate_rest(int w) {
@@ -184,7 +202,7 @@ void WhiskerSession::take_rest(int w, const Eigen::VectorXd& u) {
   if (!options_.contact_load) return;
   LoadFitOptions o = options_.contact_fit;
   o.max_load_points = 1;
-  contact_fit_[w].emplace(contact_fit_beam(t, u), o);
+  contact_fit_[w].emplace(contact_fit_beam(t, u, options_.readout.physics), o);
   if (!contact_fit_[w]->valid()) contact_fit_[w].reset();
 }
 
@@ -215,7 +233,10 @@ WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const Whis
   const Eigen::Matrix2Xd& X = fit.model().rest_positions();
   load.point = X.col(point) + fit.state().segment<2>(3 * point);
   const Eigen::Vector2d arm = load.point - (X.col(0) + fit.state().segment<2>(0));
-  load.moment = arm.x() * load.force.y() - arm.y() * load.force.x();
+  // With a scale the force is in newtons and the arm in pixels: the moment in N·m.
+  const WhiskerPhysics& ph = options_.readout.physics;
+  const double arm_unit = ph.si() ? ph.mm_per_px * 1e-3 : 1.0;
+  load.moment = arm_unit * (arm.x() * load.force.y() - arm.y() * load.force.x());
   return load;
 }
 
@@ -244,12 +265,22 @@ void WhiskerSession::pammer(int w, const WhiskerReadout& readout, const WhiskerC
                             WhiskerSessionWhisker::ContactLoad* load) const {
   const Tracker& t = tracker_->whisker(w);
   const WhiskerReadoutOptions& ro = options_.readout;
-  // Δκ per pixel and the trackers' E·I (model units, as the contact load).
+  // Δκ per pixel and E·I per pixel² in the contact load's units: the trackers' E·I (model
+  // units), or with a scale the cone's at p over (metres per pixel)² (force in newtons).
   const double dk =
       ro.physics.si() ? readout.delta_curvature * ro.physics.mm_per_px : readout.delta_curvature;
+  const double window_centre_px = 0.5 * (ro.curvature_from_px + ro.curvature_to_px);
   const double h = options_.tracker.section_height_px;
-  const double EI = options_.tracker.young_modulus * h * h * h / 12.0;
-  const auto [xp, tp] = along_nodes(t, 0.5 * (ro.curvature_from_px + ro.curvature_to_px));
+  double EI = options_.tracker.young_modulus * h * h * h / 12.0;
+  if (ro.physics.si()) {
+    const double m_per_px = ro.physics.mm_per_px * 1e-3;
+    EI = ro.physics
+             .section_at(window_centre_px * ro.physics.mm_per_px,
+                         t.model().total_length() * ro.physics.mm_per_px)
+             .EI /
+         (m_per_px * m_per_px);
+  }
+  const auto [xp, tp] = along_nodes(t, window_centre_px);
   const auto [xc, tc] = along_nodes(t, c.arc_length_px);
   const Eigen::Vector2d nc(-tc.y(), tc.x());
   auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
@@ -258,7 +289,8 @@ void WhiskerSession::pammer(int w, const WhiskerReadout& readout, const WhiskerC
   const double lever = cross(xc - xp, nc);
   if (!(std::abs(lever) > 1e-9)) return;
   load->pammer_force = EI * dk / lever;
-  load->pammer_moment = cross(xc - t.node_position(0), nc) * load->pammer_force;
+  const double arm_unit = ro.physics.si() ? ro.physics.mm_per_px * 1e-3 : 1.0;
+  load->pammer_moment = arm_unit * cross(xc - t.node_position(0), nc) * load->pammer_force;
 }
 
 }  // namespace sinew::rt

@@ -61,8 +61,9 @@ struct WhiskerSessionWhisker {
   /// The force at the contact point that, with the follicle clamped at its tracked pose, best
   /// explains the whole tracked whisker against its rest shape (rt::LoadFit on the whisker's beam
   /// subdivided 4×: the load point moves with the contact in steps of a quarter element). For a
-  /// whisker in contact after its rest frame. Model units: the trackers' section (E, width h in
-  /// pixels), lengths in pixels.
+  /// whisker in contact after its rest frame. With an image scale (readout.physics.mm_per_px)
+  /// in SI: newtons and newton-metres, the whisker's tapered cone (contact_fit_beam); without
+  /// one, model units: the trackers' section (E, width h in pixels), lengths in pixels.
   /// When the fit found no equilibrium there is no load: force, point and moment are NaN (empty
   /// in the CSV, null in JSON). A load whose fit ran out of iterations is reported with
   /// converged false (LoadFitSummary).
@@ -71,23 +72,31 @@ struct WhiskerSessionWhisker {
     bool converged = false;
     bool equilibrium = false;  ///< a load was found (LoadFitSummary::equilibrium)
     Eigen::Vector2d force = Eigen::Vector2d::Constant(kNaN);  ///< on the whisker, image axes
-    Eigen::Vector2d point = Eigen::Vector2d::Constant(kNaN);  ///< where it acts (the fit's node)
+    Eigen::Vector2d point = Eigen::Vector2d::Constant(kNaN);  ///< where it acts, pixels
     double moment = kNaN;  ///< (point − follicle) × force: the contact's moment about the follicle
     double rms_px = 0.0;  ///< the fitted equilibrium's misfit to the tracked nodes
     /// The quasi-static estimate labs compute from curvature (Pammer et al. 2013): a force along
     /// the normal at the contact whose moment at the curvature window's centre p is E·I·Δκ there,
     /// f = E·I·Δκ / ((x_c − x_p) × n_c), and its moment about the follicle
-    /// (x_c − x_0) × n_c · f (the cosines of their formula as cross products). Model units.
+    /// (x_c − x_0) × n_c · f (the cosines of their formula as cross products). Units as above
+    /// (with a scale, E·I of the cone at p).
     double pammer_force = 0.0;
     double pammer_moment = 0.0;
   };
   std::optional<ContactLoad> contact_load;
 };
 
-/// The beam a whisker's contact load is fitted on: the whisker's own, with its shape at the rest
-/// state `rest` as the reference, clamped at the follicle (which the fit holds at its tracked
-/// pose).
-common::BeamDescription contact_fit_beam(const Tracker& whisker, const Eigen::VectorXd& rest);
+/// The beam a whisker's contact load is fitted on: the tracked beam's elements, with its shape at
+/// the rest state `rest` as the reference, clamped at the follicle (which the fit holds at its
+/// tracked pose). Without an image scale, the trackers' section (model units). With one
+/// (physics.si()), the physical whisker's tapered cone (WhiskerPhysics::section_at at each
+/// element's midpoint) with lengths still in pixels: EA and GA in newtons, EI in N·px² (EI over
+/// the square of the metres per pixel), so that the fitted forces are in newtons.
+common::BeamDescription contact_fit_beam(const common::BeamModel& tracked,
+                                         const Eigen::VectorXd& rest,
+                                         const WhiskerPhysics& physics = {});
+common::BeamDescription contact_fit_beam(const Tracker& whisker, const Eigen::VectorXd& rest,
+                                         const WhiskerPhysics& physics = {});
 
 class WhiskerSession {
  public:

@@ -4,13 +4,16 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <iostream>
 #include <vector>
 
 #include "common/beam/beam_model.hpp"
 #include "common/beam/static_solver.hpp"
 #include "rt/centreline.hpp"
+#include "rt/load_fit.hpp"
 #include "rt/whisker/contact.hpp"
 #include "rt/whisker/readout.hpp"
+#include "rt/whisker/session.hpp"
 #include "rt/whisker/whisker_tracker.hpp"
 
 namespace sinew::rt {
@@ -218,6 +221,77 @@ TEST(WhiskerContact, ClosestApproachToAPoleAlongTheWhisker) {
   EXPECT_FALSE(none.touching);
   EXPECT_NEAR(none.distance_px, 12.0, 0.05);
   EXPECT_FALSE(find_contact(tracker.whisker(0), nullptr, width, height).touching);
+}
+
+// The contact load in SI (rt::contact_fit_beam with a scale): a tapered rat-like whisker pushed at
+// 70 % of its length by a known force, solved in millimetres and millinewtons on its own 16
+// elements (a large deflection), handed to the load fit in pixels, at two image scales (the same
+// whisker in twice as many pixels). The fit's force along the known contact normal comes out in
+// newtons and its moment about the follicle in newton-metres, the same at both scales.
+TEST(WhiskerContactLoad, TaperedWhiskerGivesTheSameSIForceAtTwoImageScales) {
+  const int elements = 16, contact = 11;
+  const Eigen::Vector2d F(-0.05, 0.12);  // millinewtons
+  Eigen::Vector2d forces[2];
+  double moments[2] = {0.0, 0.0}, expected_moment = 0.0;
+  const double scales[2] = {0.05, 0.025};  // mm per pixel
+  for (int k = 0; k < 2; ++k) {
+    const double mm_per_px = scales[k];
+    const Eigen::Matrix2Xd rest =
+        arc_nodes(Eigen::Vector2d(50.0, 100.0) * (0.05 / mm_per_px), 0.3,
+                  1.0 / 600.0 * (mm_per_px / 0.05), 200.0 * (0.05 / mm_per_px), elements);
+    const WhiskerPhysics ph = rat_like(mm_per_px);
+    const common::BeamModel phys = physical_model(rest, ph);
+    ASSERT_TRUE(phys.valid()) << phys.error();
+    Eigen::VectorXd loads = Eigen::VectorXd::Zero(phys.num_dofs());
+    loads.segment<2>(3 * contact) = F;
+    common::StaticSolverOptions so;
+    so.load_steps = 40;
+    common::StaticBeamSolver solver(phys, so);
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(phys.num_dofs());
+    ASSERT_EQ(solver.solve(loads, u).status, common::StaticSolverStatus::kConverged);
+    if (k == 0) {
+      const double tip_turn_deg = std::abs(u[3 * elements + 2]) * 180.0 / M_PI;
+      std::cout << "tip rotation " << tip_turn_deg << " deg\n";
+      EXPECT_GT(tip_turn_deg, 20.0) << "meant to be a large deflection";
+      const Eigen::Matrix2Xd x = phys.current_positions(u);  // millimetres
+      const double arm_x = 1e-3 * (x(0, contact) - x(0, 0)),
+                   arm_y = 1e-3 * (x(1, contact) - x(1, 0));
+      expected_moment = 1e-3 * (arm_x * F.y() - arm_y * F.x());
+    }
+    for (int i = 0; i < phys.num_nodes(); ++i) u.segment<2>(3 * i) /= mm_per_px;  // → pixels
+
+    // The tracked beam: the rest shape in pixels with any section (the fit replaces it).
+    auto d = common::BeamDescription::uniform(
+        rest, common::BeamMaterial{1000.0, 1000.0 / 2.6, 2.0, 2.0 / 3.0});
+    const common::BeamModel tracked(d);
+    LoadFitOptions lo;
+    lo.max_load_points = 1;
+    lo.max_iterations = 20;
+    LoadFit fit(contact_fit_beam(tracked, Eigen::VectorXd::Zero(tracked.num_dofs()), ph), lo);
+    ASSERT_TRUE(fit.valid()) << fit.error();
+    const int point = fit.fine_node(contact);
+    const Eigen::Vector2d n = F.normalized();
+    const double direction[2] = {n.x(), n.y()};
+    const LoadFitSummary summary = fit.fit(u, &point, 1, direction);
+    EXPECT_TRUE(summary.converged) << "scale " << mm_per_px;
+    forces[k] = fit.loads()[0] * n;  // newtons
+    const Eigen::Matrix2Xd& X = fit.model().rest_positions();
+    const Eigen::Vector2d arm =
+        (X.col(point) + fit.state().segment<2>(3 * point) - X.col(0) - fit.state().segment<2>(0)) *
+        (mm_per_px * 1e-3);
+    moments[k] = arm.x() * forces[k].y() - arm.y() * forces[k].x();
+    std::cout << mm_per_px << " mm/px: force " << forces[k].transpose() << " N (applied "
+              << 1e-3 * F.transpose() << "), moment " << moments[k] << " N m (expected "
+              << expected_moment << "), misfit " << summary.rms_px << " px\n";
+  }
+  // Against the truth, to what the fit's 4× subdivided beam makes of the 16-element solve.
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_LT((forces[k] - 1e-3 * F).norm(), 0.01 * 1e-3 * F.norm()) << "scale " << scales[k];
+    EXPECT_NEAR(moments[k], expected_moment, 0.01 * std::abs(expected_moment));
+  }
+  // Unit consistency: the two scales agree to 1 %.
+  EXPECT_LT((forces[0] - forces[1]).norm(), 0.01 * forces[0].norm());
+  EXPECT_NEAR(moments[0], moments[1], 0.01 * std::abs(moments[0]));
 }
 
 TEST(WhiskerReadout, BadOptionsAreNamed) {

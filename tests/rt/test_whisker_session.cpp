@@ -68,8 +68,8 @@ ContactFrames run(const WhiskerSessionOptions& options) {
       const auto& load = *sw.contact_load;
       out.converged += load.converged;
       out.equilibria += load.equilibrium;
-      const bool finite = load.force.allFinite() && load.point.allFinite() &&
-                          std::isfinite(load.moment);
+      const bool finite =
+          load.force.allFinite() && load.point.allFinite() && std::isfinite(load.moment);
       out.finite += finite;
       if (finite && std::abs(load.force.y()) > std::abs(out.largest_force_y)) {
         out.largest_force_y = load.force.y();

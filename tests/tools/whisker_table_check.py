@@ -26,8 +26,8 @@ def main():
     d = pd.read_csv(a.csv)
     want = ["frame", "id", "status", "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px",
             "length_px", "base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m",
-            "contact", "contact_arc_length_px", "contact_force_x_model", "contact_force_y_model",
-            "contact_moment_model", "pammer_moment_model"]
+            "contact", "contact_arc_length_px", "contact_force_x_N", "contact_force_y_N",
+            "contact_moment_N_m", "pammer_moment_N_m"]
     failures = []
     if list(d.columns) != want:
         failures.append(f"columns {list(d.columns)}, expected {want}")
@@ -55,16 +55,17 @@ def main():
     if not others[values].isna().all().all():
         failures.append("a lost or not-converged row has read-out values")
     # The contact load: on touching rows only (after the rest frame, the first here).
-    if ok[ok.contact == 0].contact_moment_model.notna().any():
-        failures.append("contact_moment_model set on a row without contact")
+    if ok[ok.contact == 0].contact_moment_N_m.notna().any():
+        failures.append("contact_moment_N_m set on a row without contact")
     # The JSON record of each ok whisker-frame carries the same numbers.
     for _, r in ok.head(50).iterrows():
         w = next(w for w in frames[int(r.frame)] if w["id"] == int(r.id))
         if not math.isclose(w["m0_N_m"], r.m0_N_m, rel_tol=1e-6, abs_tol=1e-18):
             failures.append(f"frame {r.frame} whisker {r.id}: m0 {r.m0_N_m} vs JSON {w['m0_N_m']}")
-        if ("contact_moment_model" in w) != (not math.isnan(r.contact_moment_model)) or (
-                "contact_moment_model" in w and not math.isclose(
-                    w["contact_moment_model"], r.contact_moment_model, rel_tol=1e-6)):
+        # JSON null (no load found) is an empty CSV cell.
+        jm = w.get("contact_moment_N_m")
+        if (jm is not None) != (not math.isnan(r.contact_moment_N_m)) or (
+                jm is not None and not math.isclose(jm, r.contact_moment_N_m, rel_tol=1e-6)):
             failures.append(f"frame {r.frame} whisker {r.id}: contact moment differs from JSON")
             break
     # The first frame is the rest: Δκ and M0 zero there; later a hair's moments are far below

@@ -125,6 +125,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   const std::string curvature_key = si ? "curvature_per_mm" : "curvature_per_px";
   const std::string delta_key = si ? "delta_curvature_per_mm" : "delta_curvature_per_px";
   const std::string moment_key = si ? "m0_N_m" : "m0_model";
+  // The contact load's: newtons and newton-metres with a scale, else model units.
+  const std::string force_unit = si ? "_N" : "_model", torque_unit = si ? "_N_m" : "_model";
   const std::vector<std::string> value_columns = {"follicle_x_px",
                                                   "follicle_y_px",
                                                   "tip_x_px",
@@ -136,10 +138,10 @@ int run_whiskers(const WhiskerTrackArgs& args) {
                                                   moment_key,
                                                   "contact",
                                                   "contact_arc_length_px",
-                                                  "contact_force_x_model",
-                                                  "contact_force_y_model",
-                                                  "contact_moment_model",
-                                                  "pammer_moment_model"};
+                                                  "contact_force_x" + force_unit,
+                                                  "contact_force_y" + force_unit,
+                                                  "contact_moment" + torque_unit,
+                                                  "pammer_moment" + torque_unit};
   std::ofstream csv;
   if (!args.csv.empty()) {
     csv.open(args.csv + ".tmp");
@@ -325,13 +327,13 @@ int run_whiskers(const WhiskerTrackArgs& args) {
             if (load.equilibrium) loads[w] = load;  // the overlay draws found loads only
             largest_force = std::max(largest_force, load.force.norm());
             largest_moment = std::max(largest_moment, std::abs(load.moment));
-            record["contact_force_model"] = point(load.force);
-            record["contact_moment_model"] = load.moment;
+            record["contact_force" + force_unit] = point(load.force);
+            record["contact_moment" + torque_unit] = load.moment;
             record["contact_load_point"] = point(load.point);
             record["contact_load_rms_px"] = load.rms_px;
             record["contact_load_converged"] = load.converged;
-            record["pammer_force_model"] = load.pammer_force;
-            record["pammer_moment_model"] = load.pammer_moment;
+            record["pammer_force" + force_unit] = load.pammer_force;
+            record["pammer_moment" + torque_unit] = load.pammer_moment;
             values[11] = load.force.x();
             values[12] = load.force.y();
             values[13] = load.moment;
