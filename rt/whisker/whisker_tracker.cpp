@@ -1,5 +1,4 @@
 #include "rt/whisker/whisker_tracker.hpp"
-#include <cstdlib>
 
 #include "rt/detail/field_error.hpp"
 
@@ -81,15 +80,7 @@ TrackerOptions WhiskerTrackerOptions::default_tracker_options() {
   // faint whisker's fit stay ok on noise; docs/tracker.md, "Defaults").
   t.min_relative_strength = 0.6;
   // The follicle's observation holds the whole whisker along itself: weigh it as an element.
-  if (const char* e = std::getenv("X_SPE")) t.samples_per_element = std::atoi(e);
   t.end_weight = t.samples_per_element;
-  if (const char* e = std::getenv("X_NEWTON")) t.max_newton_iterations = std::atoi(e);
-  if (const char* e = std::getenv("X_CONV")) t.convergence_px = std::atof(e);
-  if (const char* e = std::getenv("X_MEM")) t.bending_memory = std::atof(e);
-  if (const char* e = std::getenv("X_RESEARCH")) t.research_px = std::atof(e);
-  if (const char* e = std::getenv("X_BAND")) t.band_px = std::atoi(e);
-  if (const char* e = std::getenv("X_FSR")) t.first_search_range_px = std::atoi(e);
-  if (const char* e = std::getenv("X_REPS")) t.max_repetitions = std::atoi(e);
   return t;
 }
 
@@ -135,7 +126,6 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
 WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& whiskers,
                                WhiskerTrackerOptions options)
     : options_(options) {
-  if (const char* e = std::getenv("X_ELEM")) options_.element_length_px = std::atof(e);
   if (auto err = options_.validate()) {
     error_ = *err;
     return;
