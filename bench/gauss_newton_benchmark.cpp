@@ -22,6 +22,7 @@
 #include <random>
 
 #include "common/material/stable_neo_hookean.hpp"
+#include "common/timing.hpp"
 #include "offline/constraints.hpp"
 #include "offline/gauss_newton.hpp"
 #include "offline/plastic_elastic_energy.hpp"
@@ -35,9 +36,7 @@ using namespace sinew;
 using namespace sinew::offline;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 struct Problem {
   Eigen::MatrixXd rest;

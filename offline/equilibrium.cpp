@@ -16,26 +16,25 @@
 #include <limits>
 #include <sstream>
 
+#include "common/detail/field_error.hpp"
 #include "common/fem/sparse_assembly.hpp"
 #include "common/fem/tet4.hpp"
+#include "common/timing.hpp"
 
 namespace sinew::offline {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 // Relative slack of the Armijo test for round-off in Π (a sum over thousands of tets): near the
 // solution the decrease c₁α∇ΠᵀΔx drops below what the energy can resolve.
 constexpr double kEnergyRoundoff = 1e-12;
 
 std::string field_error(const char* field, double value, const char* constraint) {
-  std::ostringstream s;
-  s << "EquilibriumOptions::" << field << " = " << value << ": must be " << constraint;
-  return s.str();
+  return common::detail::field_error("EquilibriumOptions::", field, value,
+                                     std::string("must be ") + constraint);
 }
 
 const char* ipopt_status_name(int code) {

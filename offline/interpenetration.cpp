@@ -13,7 +13,9 @@
 #include <utility>
 #include <vector>
 
+#include "common/detail/field_error.hpp"
 #include "common/fem/tet4.hpp"
+#include "common/timing.hpp"
 #include "offline/constraints.hpp"
 #include "offline/plastic_elastic_energy.hpp"
 #include "offline/plastic_strain.hpp"
@@ -26,9 +28,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 // Relative slack of the Armijo test for round-off in the total energy (as in equilibrium.cpp).
 constexpr double kEnergyRoundoff = 1e-12;
@@ -38,9 +38,8 @@ constexpr double kAnchorStiffness = 1e-6;
 
 template <class T>
 std::string field_error(const char* field, T value, const char* constraint) {
-  std::ostringstream s;
-  s << "InterpenetrationOptions::" << field << " = " << value << ": must be " << constraint;
-  return s.str();
+  return common::detail::field_error("InterpenetrationOptions::", field, value,
+                                     std::string("must be ") + constraint);
 }
 
 /// Positions as the vertex-major 3n dof vector.

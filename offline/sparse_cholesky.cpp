@@ -1,5 +1,6 @@
 #include "offline/sparse_cholesky.hpp"
 
+#include "common/timing.hpp"
 #include "offline/detail/column_blocks.hpp"
 
 #include <cholmod.h>
@@ -14,9 +15,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 const char* cholmod_ordering_name(int ordering) {
   switch (ordering) {

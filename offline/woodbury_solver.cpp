@@ -1,5 +1,6 @@
 #include "offline/woodbury_solver.hpp"
 
+#include "common/timing.hpp"
 #include "offline/detail/column_blocks.hpp"
 #include "offline/detail/huge_pages.hpp"
 
@@ -14,9 +15,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 }  // namespace
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "rt/detail/field_error.hpp"
+#include "common/detail/field_error.hpp"
 #include "rt/detail/order_statistic.hpp"
 #include "rt/detail/solver_options.hpp"
 
@@ -47,7 +47,7 @@ constexpr double kMaxStepPx = 20.0;
 
 std::optional<std::string> LoadFitOptions::validate() const {
   auto error = [](const char* name, double value, const char* constraint) {
-    return detail::field_error("load fit options.", name, value, constraint);
+    return common::detail::field_error("load fit options.", name, value, constraint);
   };
   if (max_iterations < 1) return error("max_iterations", max_iterations, "must be >= 1");
   if (subdivisions < 1) return error("subdivisions", subdivisions, "must be >= 1");

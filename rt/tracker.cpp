@@ -6,8 +6,8 @@
 #include <limits>
 #include <sstream>
 
+#include "common/detail/field_error.hpp"
 #include "rt/centreline.hpp"
-#include "rt/detail/field_error.hpp"
 #include "rt/detail/order_statistic.hpp"
 #include "rt/detail/solver_options.hpp"
 
@@ -18,7 +18,7 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 std::string field_error(const char* name, double value, const char* constraint) {
-  return detail::field_error("options.", name, value, constraint);
+  return common::detail::field_error("options.", name, value, constraint);
 }
 
 // The verification model: the tracked beam itself when its fixed dofs constrain rigid motion,

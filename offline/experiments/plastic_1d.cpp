@@ -1,4 +1,5 @@
 #include "offline/experiments/plastic_1d.hpp"
+#include "common/timing.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -13,9 +14,7 @@ namespace sinew::offline::experiments {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+using common::seconds_since;
 
 int nearest_node(double X, int n) {
   return std::clamp(static_cast<int>(std::lround(X * n)), 0, n);

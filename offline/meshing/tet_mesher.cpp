@@ -1,4 +1,5 @@
 #include "offline/meshing/tet_mesher.hpp"
+#include "common/timing.hpp"
 
 // CGAL is confined to this translation unit (and surface_closest_point.cpp).
 #include <CGAL/AABB_face_graph_triangle_primitive.h>
@@ -45,9 +46,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 constexpr double kPi = 3.14159265358979323846;
 

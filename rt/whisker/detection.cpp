@@ -1,6 +1,6 @@
 #include "rt/whisker/detection.hpp"
 
-#include "rt/detail/field_error.hpp"
+#include "common/detail/field_error.hpp"
 
 #include <Eigen/QR>
 #include <algorithm>
@@ -13,7 +13,7 @@ namespace sinew::rt {
 namespace {
 
 std::string field_error(const char* field, double value, const char* constraint) {
-  return detail::field_error("whisker detection: ", field, value, constraint);
+  return common::detail::field_error("whisker detection: ", field, value, constraint);
 }
 
 // Bilinear read of a float map; false outside.

@@ -3,15 +3,15 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/detail/field_error.hpp"
 #include "rt/centreline.hpp"
-#include "rt/detail/field_error.hpp"
 
 namespace sinew::rt {
 
 namespace {
 
 std::string field_error(const char* field, double value, const char* constraint) {
-  return detail::field_error("whisker read-out: ", field, value, constraint);
+  return common::detail::field_error("whisker read-out: ", field, value, constraint);
 }
 
 double wrap_degrees(double a) {

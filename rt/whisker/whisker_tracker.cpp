@@ -1,6 +1,6 @@
 #include "rt/whisker/whisker_tracker.hpp"
 
-#include "rt/detail/field_error.hpp"
+#include "common/detail/field_error.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -13,7 +13,7 @@ namespace sinew::rt {
 namespace {
 
 std::string field_error(const char* field, double value, const char* constraint) {
-  return detail::field_error("whisker tracker: ", field, value, constraint);
+  return common::detail::field_error("whisker tracker: ", field, value, constraint);
 }
 
 // Arc lengths along a polyline.

@@ -263,7 +263,7 @@ TEST(Interpenetration, InvalidOptionsAndMeshesAreReported) {
   InterpenetrationOptions options;
   options.ring_size = -1;
   EXPECT_EQ(options.validate().value_or(""),
-            "InterpenetrationOptions::ring_size = -1: must be >= 0");
+            "InterpenetrationOptions::ring_size = -1 must be >= 0");
   InterpenetrationSummary s = sinew::offline::remove_interpenetration(a, b, options);
   EXPECT_EQ(s.status, InterpenetrationStatus::kInvalidInput);
   EXPECT_EQ(s.message, *options.validate());
@@ -272,15 +272,15 @@ TEST(Interpenetration, InvalidOptionsAndMeshesAreReported) {
   options = {};
   options.contact_margin = 1.5;
   EXPECT_EQ(options.validate().value_or(""),
-            "InterpenetrationOptions::contact_margin = 1.5: must be in [0, 1)");
+            "InterpenetrationOptions::contact_margin = 1.5 must be in [0, 1)");
   options = {};
   options.penalty_stiffness = 0.0;
   EXPECT_EQ(options.validate().value_or(""),
-            "InterpenetrationOptions::penalty_stiffness = 0: must be finite and > 0");
+            "InterpenetrationOptions::penalty_stiffness = 0 must be finite and > 0");
   options = {};
   options.max_iterations = 0;
   EXPECT_EQ(options.validate().value_or(""),
-            "InterpenetrationOptions::max_iterations = 0: must be >= 1");
+            "InterpenetrationOptions::max_iterations = 0 must be >= 1");
   options = {};
   options.material.poisson_ratio = 0.5;
   EXPECT_EQ(options.validate().value_or(""),

@@ -146,7 +146,7 @@ TEST(SinewSeparate, BadInputIsOneLineAndCreatesNothing) {
                dir);
   EXPECT_EQ(r.exit_status, 2);
   EXPECT_EQ(r.err,
-            "sinew-separate: InterpenetrationOptions::contact_margin = 2: must be in [0, 1)\n");
+            "sinew-separate: InterpenetrationOptions::contact_margin = 2 must be in [0, 1)\n");
   EXPECT_FALSE(fs::exists(out));
 }
 
