@@ -352,7 +352,10 @@ RegistrationCase read_registration_case(const std::string& path) {
   }
   if (root.has("stop")) {
     const JsonCursor s = root.at("stop");
-    s.expect_keys({"max_iterations", "max_marker_error", "min_step"});
+    s.expect_keys({"max_iterations", "max_marker_error", "min_step", "no_progress_iterations"});
+    if (s.has("no_progress_iterations")) {
+      c.stop.no_progress_iterations = integer_in(s.at("no_progress_iterations"), 0, 100000);
+    }
     if (s.has("max_iterations")) {
       c.stop.max_iterations_per_stage = integer_in(s.at("max_iterations"), 0, 100000);
     }

@@ -33,7 +33,9 @@
 ///     "max_iterations": 20,         // Gauss–Newton iterations per stage
 ///     "max_marker_error": 0.5,      // stop the ICP stage when every marker is this close (case
 ///                                   // units); default 0.1% of the template's diagonal
-///     "min_step": 0.01              // stop a stage when the line search's η is below this
+///     "min_step": 0.01,             // stop a stage when the line search's η is below this
+///     "no_progress_iterations": 3   // stop the ICP stage when Φ after 3 iterations in a row
+///                                   // is no lower than before them (default 0: never)
 ///   }
 /// }
 /// PAIRS: [{"template": [x, y, z], "target": [x, y, z], "label": "..." (optional)}, ...], or a file
@@ -113,6 +115,10 @@ struct RegistrationStop {
   /// ICP stop tolerance in the case's units; std::nullopt: 0.1% of the template's diagonal.
   std::optional<double> max_marker_error;
   double min_step = 0.01;  ///< in [0, 1)
+  /// offline::GaussNewtonOptions::icp_no_progress_iterations ("stop": {"no_progress_iterations":
+  /// N}): the ICP stage also ends (small-decrease) once Φ after N iterations in a row is no lower
+  /// than after an earlier one; ≥ 0; 0 (the default): off.
+  int no_progress_iterations = 0;
 };
 
 struct RegistrationCase {
