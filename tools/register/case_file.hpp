@@ -11,7 +11,7 @@
 ///                                   // Slicer files (.fcsv, .mrk.json: millimetres) to metres
 ///   "mesh": {                       // optional, surface templates only (offline/meshing)
 ///     "cell_size_fraction": 0.06,   // tet circumradius bound / bounding-box diagonal
-///     "tets_across_thickness": 3,   // thin parts this many tets across (tool default 3; 0: off)
+///     "tets_across_thickness": 4,   // thin parts this many tets across (tool default 4; 0: off)
 ///     "facet_distance_fraction": 0.002, "facet_angle_degrees": 25, "cell_radius_edge_ratio": 3,
 ///     "odt": true, "lloyd": false, "perturb": true, "exude": true, "sliver_bound_degrees": 12,
 ///     "protect_sharp_features": false, "random_seed": 0, "max_vertices": 2000000,
@@ -135,10 +135,10 @@ struct RegistrationCase {
     /// offline::GaussNewtonOptions::predictor_warm_start; default true.
     bool predictor_warm_start = true;
     /// offline::GaussNewtonOptions::hold_clamped_tets ("solver": {"hold_clamped_tets": B}).
-    /// Default true, with the thickness-sized mesh (mesh.tets_across_thickness 3) and the
-    /// no-progress stop: the three vertebrae 0.759 / 0.561 / 0.693 mm, the gluteus medius 0.71 /
-    /// 0.56 mm (markers 0.056 mm mean), the femur pair 0.164 mm (vertex mean), every ICP stage
-    /// ending by a convergence test. On the uniform mesh it made the gluteus medius drift
+    /// Default true, with the thickness-sized mesh (mesh.tets_across_thickness 4) and the
+    /// no-progress stop: the three vertebrae 0.756 / 0.541 / 0.569 mm, the gluteus medius 0.67 /
+    /// 0.49 mm (markers 0.042 mm mean), the femur pair 0.164 mm (vertex mean), every ICP stage
+    /// ending by the marker tolerance. On the uniform mesh it made the gluteus medius drift
     /// (markers 0.10-0.16 mm mean over ICP iterations 14-30).
     bool hold_clamped_tets = true;
     /// offline::GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01). With 0.01
