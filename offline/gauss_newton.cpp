@@ -589,6 +589,9 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
   if (icp_point_to_plane_iterations < 0) {
     return invalid("icp_point_to_plane_iterations", icp_point_to_plane_iterations, "must be >= 0");
   }
+  if (icp_no_progress_iterations < 0) {
+    return invalid("icp_no_progress_iterations", icp_no_progress_iterations, "must be >= 0");
+  }
   if (!(min_step >= 0.0 && min_step < 1.0))
     return invalid("min_step", min_step, "must be in [0, 1)");
   if (!(max_step > 0.0 && max_step <= 4.0)) {
@@ -1171,6 +1174,28 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
         } else if (before - best_value <= options.relative_decrease_tolerance * before) {
           termination = GaussNewtonTermination::kSmallDecrease;
           stage_done = true;
+        } else if (stage == RegistrationStage::kIcpMarkers &&
+                   options.icp_no_progress_iterations > 0) {
+          // Φ after each iteration at the full weights (icp_no_progress_iterations): iterations
+          // since the last one that lowered the stage's best by relative_decrease_tolerance.
+          double best_after = kInfinity;
+          int since_best = 0;
+          for (const GaussNewtonIteration& it : summary.iterations) {
+            const bool it_ramping =
+                static_cast<std::size_t>(it.iteration) <= options.icp_weight_ramp.size() ||
+                it.iteration <= options.icp_point_to_plane_iterations;
+            if (it.stage != stage || it_ramping || !(it.step > 0.0)) continue;
+            if (it.objective < (1.0 - options.relative_decrease_tolerance) * best_after) {
+              best_after = it.objective;
+              since_best = 0;
+            } else {
+              ++since_best;
+            }
+          }
+          if (since_best >= options.icp_no_progress_iterations) {
+            termination = GaussNewtonTermination::kSmallDecrease;
+            stage_done = true;
+          }
         }
       }
       // The checkpoint names what runs next: this stage's next iteration, or the next stage.

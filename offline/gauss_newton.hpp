@@ -141,6 +141,15 @@ struct GaussNewtonOptions {
   double max_step = 1.0;
   /// A stage stops when Φ decreased by less than this fraction in an iteration; in [0, 1).
   double relative_decrease_tolerance = 1e-6;
+  /// ICP stage, after its ramp and point-to-plane phase: also stop (kSmallDecrease) when Φ after
+  /// the last icp_no_progress_iterations iterations is no lower than the stage's best Φ after an
+  /// earlier iteration (by relative_decrease_tolerance), i.e. when the ICP alternation as a whole
+  /// (step, rigid re-fit, fresh closest points) no longer lowers the objective. The in-iteration
+  /// test compares Φ under one iteration's frozen closest points only: on sub-verse013 every
+  /// iteration lowered that by 7-13% while the next iteration's fresh closest points raised it
+  /// again, and the stage ran to its iteration limit. ≥ 0; 0 (the default): the in-iteration test
+  /// alone.
+  int icp_no_progress_iterations = 0;
   /// The full step η = 1 is accepted without a Brent search when Φ decreased by at least this
   /// fraction of the Gauss–Newton model's predicted decrease (and no Fp was clamped); in [0, 1],
   /// 0 always searches (the paper's plain Brent). Each search costs ~7 more equilibrium solves:

@@ -11,6 +11,7 @@
 ///                                   // Slicer files (.fcsv, .mrk.json: millimetres) to metres
 ///   "mesh": {                       // optional, surface templates only (offline/meshing)
 ///     "cell_size_fraction": 0.06,   // tet circumradius bound / bounding-box diagonal
+///     "tets_across_thickness": 4,   // thin parts this many tets across (tool default 4; 0: off)
 ///     "facet_distance_fraction": 0.002, "facet_angle_degrees": 25, "cell_radius_edge_ratio": 3,
 ///     "odt": true, "lloyd": false, "perturb": true, "exude": true, "sliver_bound_degrees": 12,
 ///     "protect_sharp_features": false, "random_seed": 0, "max_vertices": 2000000,
@@ -33,7 +34,9 @@
 ///     "max_iterations": 20,         // Gauss–Newton iterations per stage
 ///     "max_marker_error": 0.5,      // stop the ICP stage when every marker is this close (case
 ///                                   // units); default 0.1% of the template's diagonal
-///     "min_step": 0.01              // stop a stage when the line search's η is below this
+///     "min_step": 0.01,             // stop a stage when the line search's η is below this
+///     "no_progress_iterations": 3   // stop the ICP stage when Φ after 3 iterations in a row
+///                                   // is no lower than before them (0: never)
 ///   }
 /// }
 /// PAIRS: [{"template": [x, y, z], "target": [x, y, z], "label": "..." (optional)}, ...], or a file
@@ -113,6 +116,10 @@ struct RegistrationStop {
   /// ICP stop tolerance in the case's units; std::nullopt: 0.1% of the template's diagonal.
   std::optional<double> max_marker_error;
   double min_step = 0.01;  ///< in [0, 1)
+  /// offline::GaussNewtonOptions::icp_no_progress_iterations ("stop": {"no_progress_iterations":
+  /// N}): the ICP stage also ends (small-decrease) once Φ after N iterations in a row is no lower
+  /// than after an earlier one; ≥ 0, 0: off. Default 3 (see docs/registration.md).
+  int no_progress_iterations = 3;
 };
 
 struct RegistrationCase {
@@ -128,11 +135,12 @@ struct RegistrationCase {
     /// offline::GaussNewtonOptions::predictor_warm_start; default true.
     bool predictor_warm_start = true;
     /// offline::GaussNewtonOptions::hold_clamped_tets ("solver": {"hold_clamped_tets": B}).
-    /// Default false: on the three vertebrae it makes every ICP stage end by the marker tolerance
-    /// (013 0.803 mm, 018 0.627, 023 0.643), but the gluteus medius case of test_sinew_label then
-    /// drifted (markers 0.10-0.16 mm mean over ICP iterations 14-30, up to 60 s each; it ends by
-    /// the marker tolerance at 0.063 mm mean without).
-    bool hold_clamped_tets = false;
+    /// Default true, with the thickness-sized mesh (mesh.tets_across_thickness 4) and the
+    /// no-progress stop: the three vertebrae 0.756 / 0.541 / 0.569 mm, the gluteus medius 0.67 /
+    /// 0.49 mm (markers 0.042 mm mean), the femur pair 0.164 mm (vertex mean), every ICP stage
+    /// ending by the marker tolerance. On the uniform mesh it made the gluteus medius drift
+    /// (markers 0.10-0.16 mm mean over ICP iterations 14-30).
+    bool hold_clamped_tets = true;
     /// offline::GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01). With 0.01
     /// the vertebrae met their markers by squashing tets 100-fold, and sub-verse023's ICP stage
     /// stalled at 0.46 mm mean (3.5 mm max) marker error: no step was found whose equilibrium

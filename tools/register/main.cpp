@@ -515,6 +515,7 @@ int run(const RunRequest& request) {
   options.damped_step_trials = c.solver.damped_step_trials;
   options.predictor_warm_start = c.solver.predictor_warm_start;
   options.hold_clamped_tets = c.solver.hold_clamped_tets;
+  options.icp_no_progress_iterations = c.stop.no_progress_iterations;
   options.eigenvalue_floor = c.solver.eigenvalue_floor;
   options.equilibrium.cholesky_method = c.solver.cholesky;
   options.woodbury.cholesky_method = c.solver.cholesky;
@@ -551,6 +552,7 @@ int run(const RunRequest& request) {
                                {"damped_step_trials", options.damped_step_trials},
                                {"predictor_warm_start", options.predictor_warm_start},
                                {"hold_clamped_tets", options.hold_clamped_tets},
+                               {"icp_no_progress_iterations", options.icp_no_progress_iterations},
                                {"eigenvalue_floor", tools::hex_double(options.eigenvalue_floor)},
                                {"cholesky", offline::to_string(c.solver.cholesky)}};
   for (const double f : options.icp_weight_ramp) {
@@ -699,6 +701,7 @@ int run(const RunRequest& request) {
                        {"max_marker_error", max_marker_error},
                        {"min_step", options.min_step},
                        {"icp_weight_ramp", options.icp_weight_ramp},
+                       {"icp_no_progress_iterations", options.icp_no_progress_iterations},
                        {"cholesky", offline::to_string(c.solver.cholesky)},
                        {"mesh_cell_size_fraction", c.mesh.cell_size_fraction}};
   nlohmann::json iterations = nlohmann::json::array();
