@@ -15,6 +15,8 @@
 #include <sstream>
 #include <utility>
 
+#include "common/detail/field_error.hpp"
+#include "common/timing.hpp"
 #include "offline/plastic_strain.hpp"
 #include "offline/plastic_strain_laplacian.hpp"
 #include "offline/rigid_motion.hpp"
@@ -25,14 +27,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 std::string invalid(const char* field, double value, const char* constraint) {
-  std::ostringstream out;
-  out << field << " = " << value << " " << constraint;
-  return out.str();
+  return common::detail::field_error("", field, value, constraint);
 }
 
 // Rest positions (#V by 3) from the 3n dof vector.

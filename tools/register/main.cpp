@@ -53,6 +53,7 @@
 #include <vector>
 
 #include "common/material/stable_neo_hookean.hpp"
+#include "common/timing.hpp"
 #include "offline/constraints.hpp"
 #include "offline/gauss_newton.hpp"
 #include "offline/io/surface_mesh_io.hpp"
@@ -81,9 +82,7 @@ using namespace sinew;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using common::seconds_since;
 
 // Template points farther than this from the tet mesh (in diagonals) are input errors: almost
 // always a point in another frame or unit.
