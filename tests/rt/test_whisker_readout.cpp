@@ -81,6 +81,19 @@ common::BeamModel physical_model(const Eigen::Matrix2Xd& rest_px, const WhiskerP
   return common::BeamModel(d);
 }
 
+// The physical whisker's equilibrium under a point force F at node `node`, from its rest shape
+// in 40 load increments (a large deflection).
+common::StaticSolverSummary press(const common::BeamModel& phys, int node, const Eigen::Vector2d& F,
+                                  Eigen::VectorXd& u) {
+  Eigen::VectorXd loads = Eigen::VectorXd::Zero(phys.num_dofs());
+  loads.segment<2>(3 * node) = F;
+  common::StaticSolverOptions so;
+  so.load_steps = 40;
+  common::StaticBeamSolver solver(phys, so);
+  u = Eigen::VectorXd::Zero(phys.num_dofs());
+  return solver.solve(loads, u);
+}
+
 TEST(WhiskerReadout, FollicleReactionBalancesALargeDeflectionContactLoad) {
   // A 10 mm rat-like whisker (0.05 mm/px, 200 px, radius 40 → 2 µm) pushed sideways at 70 % of
   // its length by a pole: a large deflection (the tip turns by tens of degrees). The follicle's
@@ -91,13 +104,8 @@ TEST(WhiskerReadout, FollicleReactionBalancesALargeDeflectionContactLoad) {
   ASSERT_TRUE(phys.valid()) << phys.error();
   const int contact = 11;
   const Eigen::Vector2d F(-0.15, 0.25);  // millinewtons
-  Eigen::VectorXd loads = Eigen::VectorXd::Zero(phys.num_dofs());
-  loads.segment<2>(3 * contact) = F;
-  common::StaticSolverOptions so;
-  so.load_steps = 40;
-  common::StaticBeamSolver solver(phys, so);
-  Eigen::VectorXd u_mm = Eigen::VectorXd::Zero(phys.num_dofs());
-  const auto summary = solver.solve(loads, u_mm);
+  Eigen::VectorXd u_mm;
+  const auto summary = press(phys, contact, F, u_mm);
   ASSERT_EQ(summary.status, common::StaticSolverStatus::kConverged);
   const double tip_turn_deg = std::abs(u_mm[3 * 16 + 2]) * 180.0 / M_PI;
   std::cout << "tip rotation " << tip_turn_deg << " deg\n";
@@ -242,13 +250,8 @@ TEST(WhiskerContactLoad, TaperedWhiskerGivesTheSameSIForceAtTwoImageScales) {
     const WhiskerPhysics ph = rat_like(mm_per_px);
     const common::BeamModel phys = physical_model(rest, ph);
     ASSERT_TRUE(phys.valid()) << phys.error();
-    Eigen::VectorXd loads = Eigen::VectorXd::Zero(phys.num_dofs());
-    loads.segment<2>(3 * contact) = F;
-    common::StaticSolverOptions so;
-    so.load_steps = 40;
-    common::StaticBeamSolver solver(phys, so);
-    Eigen::VectorXd u = Eigen::VectorXd::Zero(phys.num_dofs());
-    ASSERT_EQ(solver.solve(loads, u).status, common::StaticSolverStatus::kConverged);
+    Eigen::VectorXd u;
+    ASSERT_EQ(press(phys, contact, F, u).status, common::StaticSolverStatus::kConverged);
     if (k == 0) {
       const double tip_turn_deg = std::abs(u[3 * elements + 2]) * 180.0 / M_PI;
       std::cout << "tip rotation " << tip_turn_deg << " deg\n";
