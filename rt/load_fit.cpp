@@ -75,11 +75,16 @@ LoadFit::LoadFit(const common::BeamDescription& beam, LoadFitOptions options)
         "cannot carry loads at a few points in equilibrium";
     return;
   }
+  if (options_.fit_base_rotation && !model_.fixed_mask()[2]) {
+    error_ = "load fit: fit_base_rotation needs node 0's rotation fixed (a clamped first node)";
+    return;
+  }
   const common::BeamModel coarse(beam);
   parts_ = options_.subdivisions;
   n_ = coarse.num_nodes();
   per_point_ = options_.fit_moments ? 3 : 2;
-  const int max_params = per_point_ * options_.max_load_points;
+  base_ = options_.fit_base_rotation ? 1 : 0;
+  const int max_params = per_point_ * options_.max_load_points + base_;
   const int dofs = model_.num_dofs();
   for (Eigen::VectorXd* v : {&u_, &loads_prev_, &rhs_, &du_, &z_, &u_backup_}) v->setZero(dofs);
   columns_.setZero(dofs, max_params);
@@ -140,6 +145,34 @@ void LoadFit::take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked,
       if (fixed[d]) u[d] = tracked[3 * i + c];
     }
   }
+  if (base_) u[2] = tracked[2] + q_[params_];
+}
+
+void LoadFit::parameter_columns() {
+  // Node 0's rotation couples to fine node 1 only (the tangent is block-tridiagonal); the support
+  // moved by 1 moves the free dofs by −K_ff⁻¹ K_f,θ0.
+  const Eigen::Vector3d base_coupling = tangent_.lower(0).col(2);
+  tangent_.apply_fixed_dofs(model_.fixed_mask());
+  factor_ready_ = factor_.factor(tangent_);
+  if (!factor_ready_) return;
+  for (int j = 0; j < params_ + base_; ++j) {
+    auto z = columns_.col(j);
+    if (j < params_) {
+      unit_load(j, z);
+      factor_.solve_in_place(z);
+    } else {
+      z.setZero();
+      z.segment<3>(3) = -base_coupling;
+      factor_.solve_in_place(z);
+      z[2] = 1.0;
+    }
+    for (int i = 0; i < n_; ++i) {
+      jacobian_.block<2, 1>(3 * i, j) = z.segment<2>(3 * parts_ * i);
+      jacobian_(3 * i + 2, j) = rotation_scale_ * z[3 * parts_ * i + 2];
+    }
+    // The tracked follicle angle is what the fitted one replaces: not a measurement here.
+    if (base_) jacobian_(2, j) = 0.0;
+  }
 }
 
 void LoadFit::residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const Eigen::VectorXd& u) {
@@ -147,6 +180,7 @@ void LoadFit::residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const E
     residual_.segment<2>(3 * i) = u.segment<2>(3 * parts_ * i) - tracked.segment<2>(3 * i);
     residual_[3 * i + 2] = rotation_scale_ * (u[3 * parts_ * i + 2] - tracked[3 * i + 2]);
   }
+  if (base_) residual_[2] = 0.0;
 }
 
 // The robust Gauss–Newton step on the loads from jacobian_ (tracked nodes per load parameter) and
@@ -157,7 +191,7 @@ void LoadFit::residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const E
 // (an axial force on a nearly straight beam) are held by a small ridge. False when the step is not
 // finite.
 bool LoadFit::step(bool robust) {
-  const int p = params_;
+  const int p = params_ + base_;
   auto J = jacobian_.leftCols(p);
   auto WJ = weighted_jacobian_.leftCols(p);
   if (robust) {
@@ -190,7 +224,7 @@ bool LoadFit::step(bool robust) {
 }
 
 bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations) {
-  const int p = params_;
+  const int p = params_ + base_;
   const auto& fixed = model_.fixed_mask();
   const int dofs = model_.num_dofs();
   // Start from the tracked shape: the last call's state moved by this call's change at the
@@ -221,19 +255,10 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     for (int d = 0; d < dofs; ++d) {
       if (fixed[d]) rhs_[d] = 0.0;
     }
-    tangent_.apply_fixed_dofs(fixed);
-    if (!factor_.factor(tangent_)) return false;
+    parameter_columns();
+    if (!factor_ready_) return false;
     du_ = -rhs_;
     factor_.solve_in_place(du_);
-    for (int j = 0; j < p; ++j) {
-      auto z = columns_.col(j);
-      unit_load(j, z);
-      factor_.solve_in_place(z);
-      for (int i = 0; i < n_; ++i) {
-        jacobian_.block<2, 1>(3 * i, j) = z.segment<2>(3 * parts_ * i);
-        jacobian_(3 * i + 2, j) = rotation_scale_ * z[3 * parts_ * i + 2];
-      }
-    }
     z_ = u_ + du_;
     residual(tracked, z_);
     double newton = 0.0;
@@ -268,14 +293,14 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
 
 bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations,
                      bool* equilibrium) {
-  const int p = params_;
-  const auto& fixed = model_.fixed_mask();
+  const int p = params_ + base_;
   bool ok = false;
   *equilibrium = false;
   for (int it = 0; it < options_.max_iterations; ++it) {
     ++*iterations;
     rhs_.setZero();
     add_loads(rhs_, 1.0);
+    take_supports(tracked, u_);  // the fitted follicle angle, when it is a parameter
     const common::StaticSolverSummary s = solver_.solve(rhs_, u_, &loads_prev_);
     if (!s.converged()) {
       // Start over from the unloaded reference next time.
@@ -289,16 +314,8 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
     if (ok) break;  // the previous update was negligible: this equilibrium is the answer
 
     model_.evaluate(u_, nullptr, nullptr, &tangent_);
-    tangent_.apply_fixed_dofs(fixed);
-    if (!factor_.factor(tangent_)) return false;
-    for (int j = 0; j < p; ++j) {
-      unit_load(j, z_);
-      factor_.solve_in_place(z_);
-      for (int i = 0; i < n_; ++i) {
-        jacobian_.block<2, 1>(3 * i, j) = z_.segment<2>(3 * parts_ * i);
-        jacobian_(3 * i + 2, j) = rotation_scale_ * z_[3 * parts_ * i + 2];
-      }
-    }
+    parameter_columns();
+    if (!factor_ready_) return false;
     if (!step(true)) return false;
     change_.noalias() = jacobian_.leftCols(p) * dq_.head(p);
     const double change = change_.cwiseAbs().maxCoeff();

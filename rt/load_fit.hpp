@@ -42,6 +42,11 @@ struct LoadFitOptions {
   bool coupled = true;
   /// Most load points of one call, in [1, 64].
   int max_load_points = 8;
+  /// Also fit the angle of a clamped first node (a whisker's follicle): its support rotation is
+  /// the tracked value plus a fitted offset, so the whole shape sets the angle, not the tracked
+  /// first element alone (whose angle noise would otherwise read as a load). Needs node 0's
+  /// rotation fixed.
+  bool fit_base_rotation = false;
 
   std::optional<std::string> validate() const;
 };
@@ -82,6 +87,9 @@ class LoadFit {
   /// The fitted loads: (2 or 3, or 1 with directions) per load point of the last fit(), in its
   /// order.
   Eigen::Ref<const Eigen::VectorXd> loads() const { return q_.head(params_); }
+  /// The fitted offset of node 0's support rotation from the tracked one (radians; 0 unless
+  /// options().fit_base_rotation).
+  double base_rotation() const { return base_ ? q_[params_] : 0.0; }
   /// The fitted equilibrium state of the subdivided beam.
   const Eigen::VectorXd& state() const { return u_; }
   /// Forgets the last fit: the next starts from the unloaded beam.
@@ -98,12 +106,17 @@ class LoadFit {
   // z = E e_j: the unit load of parameter j, zero on fixed dofs.
   void unit_load(int j, Eigen::Ref<Eigen::VectorXd> z) const;
   void take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked, Eigen::VectorXd& u) const;
+  // The Jacobian columns (tangent solves) of every parameter into columns_ and jacobian_, from
+  // tangent_ as evaluated (before its fixed dofs are applied) and factor_.
+  void parameter_columns();
 
   LoadFitOptions options_;
   std::string error_;
   common::BeamModel model_;
   common::StaticBeamSolver solver_;
   int parts_ = 1, n_ = 0, per_point_ = 2, params_ = 0;
+  int base_ = 0;  // 1 when the support rotation of node 0 is a parameter (index params_)
+  bool factor_ready_ = false;           // parameter_columns() factorised the tangent
   const int* points_ = nullptr;         // this call's load points
   const double* directions_ = nullptr;  // and their force directions (null: free)
   int pp_ = 2;                          // parameters per load point in this call

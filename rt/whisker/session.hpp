@@ -26,6 +26,13 @@ const char* to_string(Redetect redetect);
 /// "every", "lost" or "never"; nullopt for anything else.
 std::optional<Redetect> redetect_from_string(const std::string& name);
 
+/// LoadFitOptions with the follicle angle fitted (fit_base_rotation): the session's contact fit.
+inline LoadFitOptions default_contact_fit() {
+  LoadFitOptions o;
+  o.fit_base_rotation = true;
+  return o;
+}
+
 struct WhiskerSessionOptions {
   WhiskerDetectionOptions detection;
   /// The trackers' options; ridge_min_background is set from the first detection's backlight
@@ -44,8 +51,10 @@ struct WhiskerSessionOptions {
   int rest_frames = 1;
   /// Fit the contact load on frames in contact (contact_load below).
   bool contact_load = true;
-  /// The contact-load fit's options (one load point: max_load_points is set to 1).
-  LoadFitOptions contact_fit;
+  /// The contact-load fit's options (one load point: max_load_points is set to 1). Default: the
+  /// follicle angle is fitted with the load (fit_base_rotation): the tracked first element's
+  /// angle noise otherwise reads as a load (docs/tracker.md).
+  LoadFitOptions contact_fit = default_contact_fit();
 
   std::optional<std::string> validate() const;
 };
