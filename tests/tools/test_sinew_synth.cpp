@@ -363,6 +363,40 @@ TEST(SinewSynth, SameArgumentsGiveIdenticalBytes) {
   EXPECT_FALSE(read_text(a.dir / "frames/f_0000.png") == read_text(c.dir / "frames/f_0000.png"));
 }
 
+// The whisker pad's pole presses the whisker without friction: on every contact frame the
+// contact point lies on the pole's surface (its radius plus the whisker's half width there,
+// 0.5·(3 − 2s/L) px) and the force along the pole's normal through it, pushing the whisker away.
+// With the pole sliding along the whisker, the contact point moves along it.
+TEST(SinewSynth, WhiskerPadContactIsFrictionlessOnThePoleAndSlidesWithIt) {
+  const auto dir = scratch_dir("sinew_synth_pad_contact");
+  const auto r = run_tool(kTool + " --scenario whisker-pad --whiskers 1 --pole-travel 0.2 " +
+                              "--frames 120 --out " + (dir / "out").string(),
+                          dir);
+  ASSERT_EQ(r.exit_status, 0) << r.err;
+  std::ifstream in(dir / "out" / "truth.jsonl");
+  int contacts = 0;
+  double arc_min = 1e9, arc_max = 0.0;
+  for (std::string line; std::getline(in, line);) {
+    const json t = json::parse(line);
+    const json& w = t["whiskers"][0];
+    if (w["contact"].is_null()) continue;
+    ++contacts;
+    const json& c = w["contact"];
+    const double px = c["point"][0], py = c["point"][1];
+    const double cx = t["pole"]["centre"][0], cy = t["pole"]["centre"][1];
+    const double radius = t["pole"]["radius"], s = c["arc_length_px"], length = w["length_px"];
+    const double dx = px - cx, dy = py - cy, d = std::hypot(dx, dy);
+    EXPECT_NEAR(d, radius + 0.5 * (3.0 - 2.0 * s / length), 1e-3) << "frame " << t["frame"];
+    const double fx = c["force"][0], fy = c["force"][1], f = std::hypot(fx, fy);
+    ASSERT_GT(f, 0.0);
+    EXPECT_NEAR((fx * dx + fy * dy) / (f * d), 1.0, 1e-9) << "frame " << t["frame"];
+    arc_min = std::min(arc_min, s);
+    arc_max = std::max(arc_max, s);
+  }
+  EXPECT_GT(contacts, 20);
+  EXPECT_GT(arc_max - arc_min, 20.0) << "the contact point moves along the whisker";
+}
+
 TEST(SinewSynth, BadArgumentsGiveOneLineNamingTheOptionAndExit2) {
   const std::string small = " --frames 6 --width 320 --height 240";
   struct Case {
@@ -380,6 +414,7 @@ TEST(SinewSynth, BadArgumentsGiveOneLineNamingTheOptionAndExit2) {
       {"vanish_form", "--scenario cantilever --vanish a:b" + small, "--vanish"},
       {"lambda", "--scenario cantilever --lambda-max -1" + small, "--lambda-max"},
       {"does_not_fit", "--scenario cantilever --lambda-max 50" + small, "--width/--height"},
+      {"pole_travel", "--scenario whisker-pad --pole-travel 0.5" + small, "--pole-travel"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);

@@ -2,7 +2,7 @@
 # sinew-synth --scenario whisker-pad + sinew-track --whiskers end to end, scored against the truth
 # by scripts/whisker_truth_check.py; or the shared real whisker video, checked by
 # scripts/whisker_check.py (an independent ridge measure). Exit 77 (skipped) when the video is absent.
-#   whisker_acceptance.sh BIN_DIR SOURCE_DIR WORK_DIR still|moving|real
+#   whisker_acceptance.sh BIN_DIR SOURCE_DIR WORK_DIR still|moving|slide|real
 set -euo pipefail
 bin=$1 src=$2 work=$3 case=$4
 rm -rf "$work" && mkdir -p "$work"
@@ -29,14 +29,34 @@ case "$case" in
     # whisker's fit drifts near the pole and 26 of 64 contact frames are missed: reported, not
     # required.
     # The contact load (a normal force at the contact point fitted to the whole whisker, against
-    # its shape on frame 20): the contact's moment about the follicle 21.6 % off the truth's
-    # (median over 55 contact frames; 6 within 5 %), the force 25.9 %, the quasi-static (Pammer)
-    # moment from the curvature change 28.9 %; required: median 35 %.
+    # its shape on frame 20): the contact's moment about the follicle 22.7 % off the truth's
+    # (median over 55 contact frames; 4 within 5 %), the force 25.1 %, the quasi-static (Pammer)
+    # moment from the curvature change 25.8 %; required: median 35 %. (Rest frame 20 is the one
+    # rest setting where fitting the follicle's angle does not help: docs/tracker.md.)
     good=0.98 base=1.0 contact=(--max-contact-arc-px 1.5 --max-contact-moment-error 0.35)
     if [ "$case" = moving ]; then good=0.97 contact=(); fi
     "$py" "$src/scripts/whisker_truth_check.py" --results "$work/results.jsonl" \
       --truth "$work/pad/truth.jsonl" --require-found --require-good "$good" --max-base-px "$base" \
       "${contact[@]}"
+    ;;
+  slide)
+    # One whisker (base contrast 20 grey levels, σ = 4) whisking against a pole that slides from
+    # 60 % of its length to 40 % and back: the contact point moves along the whisker (83 → 55 px
+    # of 140) and the load grows to Δκ = 2× the whisker's rest curvature at the follicle.
+    "$bin/sinew-synth" --scenario whisker-pad --out "$work/pad" --whiskers 1 --contrast-min 20 \
+      --contrast-max 20 --pole-travel 0.2 --seed 1 >/dev/null
+    # The rest frame: 30 (contact on frames 5-20, 54-71, 103-121, 154-170).
+    "$bin/sinew-track" --input "$work/pad/frames/f_%04d.png" --whiskers --face left \
+      --rest-frame 30 --out "$work/results.jsonl"
+    # Measured: 100 % good, curve 0.10 px mean, follicle 0.14 px; contact load on the 54 contact
+    # frames after the rest frame: moment about the follicle 8.9 % off the truth's (median; 18
+    # within 5 %), force 12.1 % (19 within 10 %), Pammer 17.7 %; with the follicle's angle held at
+    # the tracked one (LoadFitOptions::fit_base_rotation off) 15.1 % and 16.5 %. Contact frames:
+    # none missed, but the offsets nearest the follicle are reported 2 frames late (where the
+    # whisker leaves the pole slowest): printed, not required. Required: moment median 15 %.
+    "$py" "$src/scripts/whisker_truth_check.py" --results "$work/results.jsonl" \
+      --truth "$work/pad/truth.jsonl" --require-found --require-good 0.98 --max-base-px 1.0 \
+      --max-contact-moment-error 0.15
     ;;
   real)
     video="$src/../shared/data/whiskers/test_video_10s.mp4"

@@ -239,6 +239,12 @@ int main(int argc, char** argv) {
   app.add_option("--whisk-hz", pad.whisk_hz, "whisker-pad: whisking frequency")
       ->capture_default_str();
   app.add_flag("--no-pole", no_pole, "whisker-pad: no pole");
+  app.add_option(
+         "--pole-travel", pad.pole_travel,
+         "whisker-pad: the pole slides from 60 % of the pressed whisker's length towards its "
+         "follicle by up to this fraction of the length and back: a moving contact point, "
+         "[0, 0.3]")
+      ->capture_default_str();
   app.add_flag("--no-lick-port", no_lick_port, "whisker-pad: no lick port");
   app.add_option("--out", out, "output folder (created): frames/, init.json, truth.jsonl")
       ->required();
@@ -297,6 +303,10 @@ int main(int argc, char** argv) {
         throw UsageError("--face-motion " + face_motion + ": must be none or translate_rotate");
       }
       require_range("--frames", pad.frames, 2, 100000);
+      if (!(pad.pole_travel >= 0.0 && pad.pole_travel <= 0.3)) {
+        throw UsageError("--pole-travel " + std::to_string(pad.pole_travel) +
+                         ": must be in [0, 0.3]");
+      }
       require_range("--width", pad.width, 320, 16384);
       require_range("--height", pad.height, 240, 16384);
       require_range("--whiskers", pad.whiskers, 1, 40);

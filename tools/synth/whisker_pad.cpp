@@ -56,8 +56,10 @@ struct Scene {
   Eigen::Vector2d face_centre;
   double rx = 0.0, ry = 0.0;
   std::vector<Whisker> whiskers;
-  Eigen::Vector2d pole = Eigen::Vector2d::Zero();
+  Eigen::Vector2d pole = Eigen::Vector2d::Zero();       // at rest (pole_at: at a frame)
+  Eigen::Vector2d pole_axis = Eigen::Vector2d::Zero();  // unit, follicle to the pole at rest
   double pole_radius = 0.0;
+  double pole_reach = 0.0;  // follicle to the pole's rest position, px
   Eigen::Vector2d port = Eigen::Vector2d::Zero(), port_half = Eigen::Vector2d::Zero();
 };
 
@@ -159,10 +161,24 @@ Scene build_scene(const WhiskerPadOptions& o) {
     const Eigen::Vector2d r = x - f;
     const Eigen::Vector2d sweep = Eigen::Vector2d(-r.y(), r.x()).normalized();
     sc.pole = x + (sc.pole_radius + half_width(s_c, w.length)) * sweep;
+    sc.pole_axis = (sc.pole - f).normalized();
+    sc.pole_reach = (sc.pole - f).norm();
   }
   sc.port = Eigen::Vector2d(0.82 * o.width, 0.82 * o.height);
   sc.port_half = sc.scale * Eigen::Vector2d(35.0, 17.0);
   return sc;
+}
+
+// The pole at a frame: slid from its rest position (60 % of the pressed whisker's length) towards
+// the follicle by up to pole_travel of the length and back, one cosine period over the sequence,
+// along the line from the follicle. Towards the tip the contact's simple rule (the node nearest the
+// pole, pushed along the line from the pole's centre) breaks down as the tip passes the pole.
+Eigen::Vector2d pole_at(const WhiskerPadOptions& o, const Scene& sc, int frame) {
+  if (o.pole_travel == 0.0 || o.whiskers < 1) return sc.pole;
+  const double length = sc.whiskers[o.whiskers - 1].length;
+  const double slide =
+      -o.pole_travel * length * 0.5 * (1.0 - std::cos(2.0 * M_PI * frame / o.frames));
+  return sc.pole + slide * sc.pole_axis;
 }
 
 struct ContactState {
@@ -173,24 +189,27 @@ struct ContactState {
 };
 
 // The last whisker against the pole: clamped at its follicle, loaded at the fine node nearest the
-// pole along the pole-to-whisker direction, with the force that puts that node on the pole's
-// surface (offset by the whisker's half width). Returns the deflected nodes.
-Eigen::Matrix2Xd press_on_pole(const Scene& sc, const Eigen::Matrix2Xd& undeformed, double length,
+// pole, with the force along the pole's normal at that node's deflected position that puts it on
+// the pole's surface (offset by the whisker's half width). Returns the deflected nodes.
+Eigen::Matrix2Xd press_on_pole(const Eigen::Vector2d& pole, double pole_radius,
+                               const Eigen::Matrix2Xd& undeformed, double length,
                                ContactState* contact) {
   *contact = ContactState{};
   int c = 0;
   double best = std::numeric_limits<double>::infinity();
   for (Eigen::Index i = 1; i < undeformed.cols(); ++i) {
-    const double d = (undeformed.col(i) - sc.pole).norm();
+    const double d = (undeformed.col(i) - pole).norm();
     if (d < best) {
       best = d;
       c = static_cast<int>(i);
     }
   }
-  const double s_c = length * c / kFineElements;
-  const double reach = sc.pole_radius + half_width(s_c, length);
-  if (best >= reach) return undeformed;
-  const Eigen::Vector2d n = (undeformed.col(c) - sc.pole).normalized();
+  // Centre to centre at contact: the pole's radius and the whisker's half width at node k.
+  const auto reach = [&](int k) {
+    return pole_radius + half_width(length * k / kFineElements, length);
+  };
+  if (best >= reach(c)) return undeformed;
+  Eigen::Vector2d n = (undeformed.col(c) - pole).normalized();
 
   common::BeamMaterial m;
   m.E = 1000.0;
@@ -214,18 +233,39 @@ Eigen::Matrix2Xd press_on_pole(const Scene& sc, const Eigen::Matrix2Xd& undeform
       throw std::runtime_error("whisker-pad: the contact solve did not converge (" +
                                std::string(summary.message) + ")");
     }
-    return (undeformed.col(c) + u.segment<2>(3 * c) - sc.pole).dot(n) - reach;
+    return (undeformed.col(c) + u.segment<2>(3 * c) - pole).dot(n) - reach(c);
   };
-  // Bracket, then bisect to 1e-4 px.
-  double lo = 0.0, hi = model.max_bending_stiffness() / (length * length);
-  while (gap(hi) < 0.0) hi *= 2.0;
-  for (int it = 0; it < 60 && hi - lo > 1e-9 * hi; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    if (gap(mid) < 0.0) {
-      lo = mid;
-    } else {
-      hi = mid;
+  // A frictionless pole pushes along its normal at the deflected contact point: bracket and bisect
+  // the force magnitude along n (to 1e-9 of it), then turn n onto the line from the pole's centre
+  // to where the node went, until it stops turning.
+  double hi = 0.0;
+  for (int turn = 0; turn < 50; ++turn) {
+    double lo = 0.0;
+    hi = model.max_bending_stiffness() / (length * length);
+    while (gap(hi) < 0.0) hi *= 2.0;
+    for (int it = 0; it < 60 && hi - lo > 1e-9 * hi; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      if (gap(mid) < 0.0) {
+        lo = mid;
+      } else {
+        hi = mid;
+      }
     }
+    gap(hi);
+    // The deflected node nearest the pole carries the contact next.
+    int nearest = c;
+    for (Eigen::Index i = 1; i < undeformed.cols(); ++i) {
+      const auto to_pole = [&](Eigen::Index k) {
+        return (undeformed.col(k) + u.segment<2>(3 * k) - pole).norm();
+      };
+      if (to_pole(i) < to_pole(nearest)) nearest = static_cast<int>(i);
+    }
+    const Eigen::Vector2d turned =
+        (undeformed.col(nearest) + u.segment<2>(3 * nearest) - pole).normalized();
+    const bool settled = nearest == c && (turned - n).norm() < 1e-9;
+    c = nearest;
+    n = turned;
+    if (settled) break;
   }
   gap(hi);
   contact->touching = true;
@@ -297,6 +337,7 @@ void write_whisker_pad(const WhiskerPadOptions& o, const std::string& out_dir) {
   cv::Mat dark(o.height, o.width, CV_32F), image(o.height, o.width, CV_32F), noise, frame8;
   for (int frame = 0; frame < o.frames; ++frame) {
     const HeadPose pose = head_pose(o, sc, frame);
+    const Eigen::Vector2d pole = pole_at(o, sc, frame);
     // Face (anti-aliased ellipse in head coordinates), pole and lick port over the backlight.
     for (int y = 0; y < o.height; ++y) {
       for (int x = 0; x < o.width; ++x) {
@@ -304,7 +345,7 @@ void write_whisker_pad(const WhiskerPadOptions& o, const std::string& out_dir) {
         const double f = (std::hypot(h.x() / sc.rx, h.y() / sc.ry) - 1.0) * std::min(sc.rx, sc.ry);
         double cover = std::clamp(0.5 - f, 0.0, 1.0);
         double grey = kFaceGrey;
-        const double dp = std::hypot(x - sc.pole.x(), y - sc.pole.y()) - sc.pole_radius;
+        const double dp = std::hypot(x - pole.x(), y - pole.y()) - sc.pole_radius;
         if (o.pole && 0.5 - dp > cover) {
           cover = std::clamp(0.5 - dp, 0.0, 1.0);
           grey = kPoleGrey;
@@ -327,7 +368,8 @@ void write_whisker_pad(const WhiskerPadOptions& o, const std::string& out_dir) {
       const Whisker& w = sc.whiskers[k];
       Eigen::Matrix2Xd x = placed(o, sc, frame, k);
       ContactState contact;
-      if (o.pole && k == o.whiskers - 1) x = press_on_pole(sc, x, w.length, &contact);
+      if (o.pole && k == o.whiskers - 1)
+        x = press_on_pole(pole, sc.pole_radius, x, w.length, &contact);
       draw_whisker(dark, x, w.length, w.contrast);
       nlohmann::json centreline = nlohmann::json::array();
       for (Eigen::Index i = 0; i < x.cols(); ++i) centreline.push_back(xy(x.col(i)));
@@ -362,7 +404,7 @@ void write_whisker_pad(const WhiskerPadOptions& o, const std::string& out_dir) {
                             {"face",
                              {{"translation", xy(pose.translation)},
                               {"rotation_deg", pose.rotation * 180.0 / M_PI}}},
-                            {"pole", {{"centre", xy(sc.pole)}, {"radius", sc.pole_radius}}},
+                            {"pole", {{"centre", xy(pole)}, {"radius", sc.pole_radius}}},
                             {"whiskers", whiskers}}
                  .dump()
           << "\n";

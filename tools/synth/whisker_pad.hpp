@@ -9,7 +9,8 @@
 /// angles oscillating ±10° at whisk_hz, camera at fps); one crossing pair (whiskers 2 and 3 curve
 /// towards each other); a static dark pole that the last whisker presses against on part of each
 /// whisk cycle (the contact force from the project's own StaticBeamSolver, found so that the
-/// whisker's contact point rests on the pole's surface); a dark lick-port-like object; optional
+/// whisker's contact point rests on the pole's surface; optionally sliding along that whisker, so
+/// that the contact point moves along it); a dark lick-port-like object; optional
 /// face motion (translation and rotation of the whole head, follicles and whiskers with it).
 ///
 /// truth.jsonl: per frame {"frame", "face": {"translation": [x, y], "rotation_deg"}, "whiskers":
@@ -34,7 +35,11 @@ struct WhiskerPadOptions {
   double fps = 500.0;          ///< camera frame rate
   bool face_motion = false;    ///< the head translates and rotates
   bool pole = true;            ///< a pole the last whisker presses against
-  bool lick_port = true;       ///< a dark static object away from the whiskers
+  /// The pole slides along the pressed whisker from 60 % of its length towards its follicle by up
+  /// to this fraction of the length and back (one cosine period over the sequence), so that the
+  /// contact point moves along the whisker and the load grows; in [0, 0.3]. 0: a static pole.
+  double pole_travel = 0.0;
+  bool lick_port = true;  ///< a dark static object away from the whiskers
   std::uint64_t seed = 1;
 };
 
