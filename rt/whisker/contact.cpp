@@ -56,4 +56,16 @@ WhiskerContact find_contact(const Tracker& whisker, const float* distance, int w
   return c;
 }
 
+Eigen::Vector2d away_from_objects(const float* distance, int width, int height,
+                                  const Eigen::Vector2d& p) noexcept {
+  if (distance == nullptr || width < 2 || height < 2) return Eigen::Vector2d::Zero();
+  const Eigen::Vector2d ex(1.0, 0.0), ey(0.0, 1.0);
+  const double gx =
+      lookup(distance, width, height, p + ex) - lookup(distance, width, height, p - ex);
+  const double gy =
+      lookup(distance, width, height, p + ey) - lookup(distance, width, height, p - ey);
+  if (!(std::abs(gx) < 255.0 && std::abs(gy) < 255.0)) return Eigen::Vector2d::Zero();
+  return 0.5 * Eigen::Vector2d(gx, gy);
+}
+
 }  // namespace sinew::rt

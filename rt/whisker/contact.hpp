@@ -25,4 +25,9 @@ struct WhiskerContact {
 WhiskerContact find_contact(const Tracker& whisker, const float* distance, int width, int height,
                             double touch_px = 3.5, double skip_px = 10.0) noexcept;
 
+/// The direction away from the nearest object at p: the distance map's gradient (central
+/// differences over ±1 px of its bilinear interpolation), not normalised; zero off the map.
+Eigen::Vector2d away_from_objects(const float* distance, int width, int height,
+                                  const Eigen::Vector2d& p) noexcept;
+
 }  // namespace sinew::rt

@@ -117,8 +117,16 @@ std::string WhiskerSession::process(const ImageView& frame) {
                         : find_contact(t, object_distance_.data(), frame.width, frame.height);
       if (out.contact->touching && contact_fit_[w]) {
         out.contact_load = fit_contact(w, *out.contact);
-        pammer(w, *out.readout, *out.contact, &*out.contact_load);
+        // An object only pushes: a load that would pull the whisker onto it says the whisker is
+        // near it, not pressed (it lingers within the touch distance as it leaves slowly).
+        const Eigen::Vector2d away = away_from_objects(object_distance_.data(), frame.width,
+                                                       frame.height, out.contact->point);
+        if (out.contact_load->equilibrium && out.contact_load->force.dot(away) < 0.0) {
+          out.contact->touching = false;
+          out.contact_load.reset();
+        }
       }
+      if (out.contact_load) pammer(w, *out.readout, *out.contact, &*out.contact_load);
     }
   }
   readout_seconds_ = seconds_since(readout_start);

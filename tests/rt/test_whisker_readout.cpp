@@ -229,6 +229,14 @@ TEST(WhiskerContact, ClosestApproachToAPoleAlongTheWhisker) {
   EXPECT_FALSE(none.touching);
   EXPECT_NEAR(none.distance_px, 12.0, 0.05);
   EXPECT_FALSE(find_contact(tracker.whisker(0), nullptr, width, height).touching);
+  // Away from the pole at the contact point: straight up from its centre below (−y), unit
+  // length where the map is a distance; zero off the map or without one.
+  const Eigen::Vector2d away = away_from_objects(touching.data(), width, height, c.point);
+  EXPECT_NEAR(away.x(), 0.0, 0.1);
+  EXPECT_NEAR(away.y(), -1.0, 0.02);
+  EXPECT_EQ(away_from_objects(touching.data(), width, height, {-5.0, 50.0}),
+            Eigen::Vector2d::Zero());
+  EXPECT_EQ(away_from_objects(nullptr, width, height, c.point), Eigen::Vector2d::Zero());
 }
 
 // The contact load in SI (rt::contact_fit_beam with a scale): a tapered rat-like whisker pushed at
