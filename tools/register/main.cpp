@@ -43,7 +43,6 @@
 
 #include <CLI/CLI.hpp>
 #include <chrono>
-#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -102,14 +101,8 @@ int run(const RunRequest& request) {
   Clock::time_point start = Clock::now();
   log.line("reading {}", request.case_file);
   const tools::RegistrationCase c = tools::read_registration_case(request.case_file);
-  std::optional<offline::io::SurfaceMesh> truth;  // --truth, checked before any work
-  if (!request.truth_file.empty()) {
-    offline::io::SurfaceMeshReadResult r = offline::io::read_surface_mesh(request.truth_file);
-    if (!r.ok()) throw tools::InputError(r.error);
-    truth = std::move(*r.mesh);
-    log.line("truth: {}, {} vertices, {} triangles", request.truth_path, truth->vertices.rows(),
-             truth->triangles.rows());
-  }
+  // --truth, checked before any work.
+  const auto truth = tools::read_truth(request.truth_file, request.truth_path, log);
   const tools::ScanImages scan = tools::read_scan_images(c, log);
   const double reading = seconds_since(start);
 
@@ -147,27 +140,16 @@ int run(const RunRequest& request) {
                                           r.problem.frame.scale, offline::to_string(c.units), log);
   }
   std::vector<std::string> written = tools::write_result_files(out, c, r, scan, report, log);
-  const nlohmann::json phases = {{"reading", reading + r.seconds.reading},
-                                 {"meshing", r.seconds.meshing},
-                                 {"embedding", r.seconds.embedding},
-                                 {"registration", r.seconds.registration},
-                                 {"writing", r.seconds.figures + seconds_since(start)}};
-  const offline::GaussNewtonSummary& summary = r.registration.summary;
-  report["outputs"] = written;
-  report["totals"] = {{"iterations", summary.iterations.size()},
-                      {"equilibrium_solves", summary.equilibrium_solves},
-                      {"registration_seconds", summary.seconds},
-                      {"seconds", seconds_since(run_start)},
-                      {"phases", phases}};
-  tools::write_json_file(out.report().string(), report);
-  written.push_back(out.report().string());
+  tools::write_report(out, r, reading, seconds_since(start), seconds_since(run_start), report,
+                      written);
   {
     std::error_code ec;  // done: nothing left to resume
     fs::remove(checkpoint_file, ec);
   }
   for (const std::string& path : written) log.line("wrote {}", path);
-  return summary.usable() ? 0 : 1;
+  return r.registration.summary.usable() ? 0 : 1;
 }
+
 // One case with its errors reported: the exit status of the tool.
 int run_reporting_errors(const RunRequest& request) {
   try {
@@ -262,16 +244,7 @@ int main(int argc, char** argv) {
     try {
       const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
       sinew::tools::write_demo_case(demo, demo_dir);
-      if (!quiet) {
-        fmt::print(
-            "wrote {}/case.json: a {:g} x {:g} x {:g} mm capsule ({} vertices) attached at its x = "
-            "0 end by {} points; {} ICP markers on its known deformation (free part {:g}x longer, "
-            "bent {:.0f} degrees; vertices move up to {:.1f} mm), {}/truth_surface.obj\n",
-            demo_dir, demo.options.shape.length, 2 * demo.options.shape.radius_y,
-            2 * demo.options.shape.radius_z, demo.template_surface.vertices.rows(),
-            demo.attachment_points.rows(), demo.markers.rows(), 1 + demo.options.stretch,
-            demo.options.bend_radians * 180 / std::acos(-1.0), demo.max_displacement, demo_dir);
-      }
+      if (!quiet) fmt::print("{}\n", sinew::tools::demo_case_summary(demo, demo_dir));
       return 0;
     } catch (const std::exception& e) {
       std::cerr << "sinew-register: " << e.what() << "\n";

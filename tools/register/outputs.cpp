@@ -181,6 +181,16 @@ void prepare_output_dir(const RegisterOutputs& out, const offline::RegistrationC
   fs::remove_all(out.dir / "slices", ec);
 }
 
+std::optional<offline::io::SurfaceMesh> read_truth(const std::string& file,
+                                                   const std::string& given_as, const Log& log) {
+  if (file.empty()) return std::nullopt;
+  offline::io::SurfaceMeshReadResult r = offline::io::read_surface_mesh(file);
+  if (!r.ok()) throw InputError(r.error);
+  log.line("truth: {}, {} vertices, {} triangles", given_as, r.mesh->vertices.rows(),
+           r.mesh->triangles.rows());
+  return std::move(*r.mesh);
+}
+
 ScanImages read_scan_images(const offline::RegistrationCase& c, const Log& log) {
   ScanImages scan;
   if (!c.scan_image) return scan;
@@ -318,6 +328,25 @@ std::vector<std::string> write_result_files(const RegisterOutputs& out,
   written.push_back(histogram.string());
   written.push_back(convergence.string());
   return written;
+}
+
+void write_report(const RegisterOutputs& out, const offline::RegisterCaseResult& r,
+                  double reading_seconds, double writing_seconds, double total_seconds,
+                  nlohmann::json& report, std::vector<std::string>& written) {
+  const nlohmann::json phases = {{"reading", reading_seconds + r.seconds.reading},
+                                 {"meshing", r.seconds.meshing},
+                                 {"embedding", r.seconds.embedding},
+                                 {"registration", r.seconds.registration},
+                                 {"writing", r.seconds.figures + writing_seconds}};
+  const offline::GaussNewtonSummary& summary = r.registration.summary;
+  report["outputs"] = written;
+  report["totals"] = {{"iterations", summary.iterations.size()},
+                      {"equilibrium_solves", summary.equilibrium_solves},
+                      {"registration_seconds", summary.seconds},
+                      {"seconds", total_seconds},
+                      {"phases", phases}};
+  write_json_file(out.report().string(), report);
+  written.push_back(out.report().string());
 }
 
 }  // namespace sinew::tools

@@ -49,6 +49,11 @@ struct RegisterOutputs {
 /// finished (report.json is written last). Throws InputError.
 void prepare_output_dir(const RegisterOutputs& out, const offline::RegistrationCase& c);
 
+/// --truth FILE (shown as given_as in messages): std::nullopt when file is empty; throws InputError
+/// when it cannot be read.
+std::optional<offline::io::SurfaceMesh> read_truth(const std::string& file,
+                                                   const std::string& given_as, const Log& log);
+
 /// The case's "scan_image" (and mask), read before any work so that a bad image fails early.
 struct ScanImages {
   std::optional<offline::io::VolumeImage> image, mask;
@@ -74,5 +79,12 @@ std::vector<std::string> write_result_files(const RegisterOutputs& out,
                                             const offline::RegisterCaseResult& r,
                                             const ScanImages& scan, nlohmann::json& report,
                                             const Log& log);
+
+/// Completes report.json with "outputs" (written) and "totals" (iterations, equilibrium solves,
+/// seconds per phase: reading_seconds before register_case, writing_seconds after it) and writes
+/// it, last, to OUTDIR/report.json (appended to written).
+void write_report(const RegisterOutputs& out, const offline::RegisterCaseResult& r,
+                  double reading_seconds, double writing_seconds, double total_seconds,
+                  nlohmann::json& report, std::vector<std::string>& written);
 
 }  // namespace sinew::tools
