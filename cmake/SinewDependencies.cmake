@@ -15,6 +15,7 @@ if(SINEW_BUILD_OFFLINE)
   find_package(NLopt REQUIRED)
   find_package(CGAL REQUIRED)
   find_package(ZLIB REQUIRED)  # offline/io: gzip-compressed NIfTI / INRIA images
+  find_package(fmt REQUIRED)  # offline/registration: progress messages
   # CHOLMOD (SuiteSparse) on OpenBLAS: Debian switches the BLAS/LAPACK alternatives to OpenBLAS
   # once libopenblas-dev is installed; we still link it explicitly so the choice is visible.
   find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse REQUIRED)

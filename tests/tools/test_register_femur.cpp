@@ -18,8 +18,8 @@
 
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/meshing/label_image.hpp"
+#include "offline/registration/surface_distance.hpp"
 #include "tests/support/run_tool.hpp"
-#include "tools/register/surface_distance.hpp"
 
 namespace {
 
@@ -105,8 +105,8 @@ TEST(RegisterFemur, FreeFlyingFemurMovedFarMeetsTheTargetSurface) {
       sinew::offline::io::read_surface_mesh((dir / "out" / "result_surface.obj").string());
   ASSERT_TRUE(result.mesh) << result.error;
   ASSERT_EQ(result.mesh->vertices.rows(), moved.vertices.rows());
-  const auto forward = sinew::tools::vertex_to_surface_distances(*result.mesh, moved);
-  const auto backward = sinew::tools::vertex_to_surface_distances(moved, *result.mesh);
+  const auto forward = sinew::offline::vertex_to_surface_distances(*result.mesh, moved);
+  const auto backward = sinew::offline::vertex_to_surface_distances(moved, *result.mesh);
   const double symmetric = 0.5 * (forward.mean + backward.mean);
   double vertex_sum = 0.0, vertex_max = 0.0;
   for (Eigen::Index v = 0; v < moved.vertices.rows(); ++v) {

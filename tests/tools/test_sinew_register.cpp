@@ -27,11 +27,11 @@
 #include <vector>
 
 #include "offline/io/surface_mesh_io.hpp"
+#include "offline/registration/surface_distance.hpp"
 #include "offline/surface_closest_point.hpp"
 #include "tests/support/run_tool.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
 #include "tools/register/demo_case.hpp"
-#include "tools/register/surface_distance.hpp"
 
 namespace {
 
@@ -906,34 +906,6 @@ TEST(SinewRegister, BotschBarTwistFromFixedAndHandleRegions) {
 
 // --- the demo case of scripts/demo, with --truth
 
-TEST(SinewRegister, SurfaceDistanceMatchesBruteForce) {
-  const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
-  const SurfaceMesh& truth = demo.truth_surface;
-  const sinew::tools::SurfaceDistance query(truth);
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> uniform(-80.0, 180.0);
-  double largest = 0.0;
-  for (int i = 0; i < 300; ++i) {
-    // Near the surface (jittered vertices) and far from it (anywhere in a box around it).
-    const Eigen::Vector3d p =
-        i % 2 == 0 ? Eigen::Vector3d(truth.vertices.row(i % truth.vertices.rows()).transpose() +
-                                     Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng)) / 50)
-                   : Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
-    double brute = std::numeric_limits<double>::infinity();
-    for (Eigen::Index f = 0; f < truth.triangles.rows(); ++f)
-      brute = std::min(brute, (sinew::offline::closest_point_on_triangle(
-                                   p, truth.vertices.row(truth.triangles(f, 0)).transpose(),
-                                   truth.vertices.row(truth.triangles(f, 1)).transpose(),
-                                   truth.vertices.row(truth.triangles(f, 2)).transpose())
-                                   .point -
-                               p)
-                                  .norm());
-    EXPECT_NEAR(query.distance(p), brute, 1e-12 * (1 + brute)) << i;
-    largest = std::max(largest, brute);
-  }
-  EXPECT_GT(largest, 10.0);  // the far points tested the ring search
-}
-
 TEST(SinewRegister, DemoCaseMeetsItsKnownDeformation) {
   const auto dir = scratch_dir("sinew_register_demo_case");
   const auto made = run_tool(kTool + " --make-demo-case " + (dir / "case").string(), dir);
@@ -953,7 +925,8 @@ TEST(SinewRegister, DemoCaseMeetsItsKnownDeformation) {
   EXPECT_GT(sinew::offline::io::check_surface(demo.template_surface).signed_volume, 0.0);
   EXPECT_TRUE(sinew::offline::io::check_surface(demo.truth_surface).closed_manifold());
   // Not a trivial case: the template is far from the truth.
-  const auto before = sinew::tools::vertex_to_surface_distances(demo.template_surface, *truth.mesh);
+  const auto before =
+      sinew::offline::vertex_to_surface_distances(demo.template_surface, *truth.mesh);
   EXPECT_GT(before.max, 10.0);
 
   const auto start = std::chrono::steady_clock::now();

@@ -209,18 +209,6 @@ void parse_mesh_options(const JsonCursor& m, offline::TetMesherOptions& o) {
 
 }  // namespace
 
-const char* to_string(LengthUnit unit) {
-  switch (unit) {
-    case LengthUnit::kMillimetre:
-      return "mm";
-    case LengthUnit::kMetre:
-      return "m";
-    case LengthUnit::kUnspecified:
-      break;
-  }
-  return "";
-}
-
 bool is_tet_mesh_path(const std::string& path) {
   const std::string name = lower(path);
   return ends_with(name, ".mesh") || ends_with(name, ".veg") || ends_with(name, ".node") ||

@@ -52,135 +52,19 @@
 /// μ·diagonal (appendix G: scaling the stiffness is equivalent to scaling the weights). The same
 /// numbers therefore suit a liver in millimetres and a bar in metres.
 
-#include <Eigen/Core>
-#include <optional>
 #include <string>
-#include <vector>
 
-#include "offline/meshing/tet_mesher.hpp"
-#include "offline/sparse_cholesky.hpp"
+#include "offline/registration/registration_case.hpp"
 
 namespace sinew::tools {
 
-enum class LengthUnit {
-  kUnspecified,  ///< no "units" key: lengths are reported in the template's units
-  kMillimetre,
-  kMetre,
-};
-
-/// "mm", "m" or "" (unspecified).
-const char* to_string(LengthUnit unit);
-
-/// Corresponding points in the case's units: template_points.row(i) is a material point of the
-/// template (on or near it) that should move to target_points.row(i).
-struct PointPairSet {
-  Eigen::MatrixXd template_points;  ///< #P by 3
-  Eigen::MatrixXd target_points;    ///< #P by 3
-  std::vector<std::string> labels;  ///< one per pair (maybe ""), or empty
-  /// Where they came from, for messages: the case file (points given inline) or the marker
-  /// file's path (of the targets, for a {"template": FILE, "target": FILE} pair of lists).
-  std::string source;
-  /// As source, for the template points (differs for a pair of lists only).
-  std::string template_source;
-  Eigen::Index size() const { return template_points.rows(); }
-};
-
-struct RegistrationWeights {
-  double alpha = 1e5;  ///< landmarks and ICP markers, per diagonal² of misfit; > 0
-  /// Attachments in the objective, per diagonal²; ≥ 0. Default: 1e4 when attachments are the
-  /// only observations; 0 with landmarks or ICP markers, where the stiff springs already meet the
-  /// attachments and an attachment-only stage would only undo the constant initial fit (its
-  /// Gauss–Newton step moves the uniform plastic modes the springs hardly see).
-  std::optional<double> beta;
-  double attachment_stiffness = 10;  ///< spring of each attachment, μ·diagonal; > 0
-  /// ICP continuation (offline::GaussNewtonOptions::icp_weight_ramp): factors of alpha for the
-  /// first ICP iterations, each in (0, 1]. Default: 1e-3, 1e-2, 1e-1, three iterations each.
-  std::vector<double> icp_weight_ramp = {1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2, 1e-1, 1e-1, 1e-1};
-  /// ICP iterations whose markers count point to plane before point to point
-  /// (offline::GaussNewtonOptions::icp_point_to_plane_iterations); ≥ 0. Default 10 (measured:
-  /// femur pair 0.391 → 0.335 mm mean symmetric distance; gluteus medius 2.04 / 0.73 → 0.73 /
-  /// 0.58 mm, worst 13.6 → 5.6 mm).
-  int icp_point_to_plane_iterations = 10;
-  /// Landmarks stay in the ICP stage's objective (offline::GaussNewtonOptions::
-  /// icp_stage_landmarks); default true: the user's correspondences are met in the result too.
-  bool icp_stage_landmarks = true;
-  /// offline::GaussNewtonOptions::landmark_stage: with landmarks in the ICP stage and ICP
-  /// markers, the separate landmark stage runs only when this is true; default false.
-  bool landmark_stage = false;
-};
-
-struct RegistrationStop {
-  /// ≥ 0. 40: the ICP stage's ramp and point-to-plane phase take the first 10, and the damped
-  /// steps (Solver::damped_step_trials) of the vertebrae need 15-30 more to meet the markers.
-  int max_iterations_per_stage = 40;
-  /// ICP stop tolerance in the case's units; std::nullopt: 0.1% of the template's diagonal.
-  std::optional<double> max_marker_error;
-  double min_step = 0.01;  ///< in [0, 1)
-  /// offline::GaussNewtonOptions::icp_no_progress_iterations ("stop": {"no_progress_iterations":
-  /// N}): the ICP stage also ends (small-decrease) once Φ after N iterations in a row is no lower
-  /// than after an earlier one; ≥ 0, 0: off. Default 3 (see docs/registration.md).
-  int no_progress_iterations = 3;
-};
-
-struct RegistrationCase {
-  std::string case_path;      ///< as given on the command line
-  std::string template_path;  ///< resolved against the case file's folder
-  bool template_is_tet_mesh = false;
-  LengthUnit units = LengthUnit::kUnspecified;
-  struct Solver {
-    /// offline::GaussNewtonOptions::damped_step_trials ("solver": {"damped_step_trials": N}).
-    /// Default 4 (μ up to 1e3 of the smoothness term): without it the ICP stage on real
-    /// vertebrae (issue 18) clamped 10–18% of the tets per step and stalled.
-    int damped_step_trials = 4;
-    /// offline::GaussNewtonOptions::predictor_warm_start; default true.
-    bool predictor_warm_start = true;
-    /// offline::GaussNewtonOptions::hold_clamped_tets ("solver": {"hold_clamped_tets": B}).
-    /// Default true, with the thickness-sized mesh (mesh.tets_across_thickness 4) and the
-    /// no-progress stop: the three vertebrae 0.756 / 0.541 / 0.569 mm, the gluteus medius 0.67 /
-    /// 0.49 mm (markers 0.042 mm mean), the femur pair 0.164 mm (vertex mean), every ICP stage
-    /// ending by the marker tolerance. On the uniform mesh it made the gluteus medius drift
-    /// (markers 0.10-0.16 mm mean over ICP iterations 14-30).
-    bool hold_clamped_tets = true;
-    /// offline::GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01). With 0.01
-    /// the vertebrae met their markers by squashing tets 100-fold, and sub-verse023's ICP stage
-    /// stalled at 0.46 mm mean (3.5 mm max) marker error: no step was found whose equilibrium
-    /// inverted no tet. 0.1 stalled the same way; with 0.2 sub-verse018 and 023 end by a
-    /// convergence test, 013 at the iteration limit (docs/registration.md).
-    double eigenvalue_floor = 0.2;
-    /// Sparse Cholesky method of every factorisation ("solver": {"cholesky": "auto" |
-    /// "simplicial" | "supernodal"}; offline::SparseCholeskyMethod). Simplicial has no BLAS, so
-    /// the run is the same with every OpenBLAS kernel and thread count (tests/tools/
-    /// register_stability_sweep.sh); supernodal is much faster on large meshes but its result
-    /// depends on the CPU (sub-verse013: 0.837 mm with the SkylakeX kernels, 0.797 with
-    /// Haswell's). Default auto: simplicial up to 1e6 nonzeros in the factor (meshes up to about
-    /// 8k tets, the vertebrae included), supernodal above; "simplicial" makes a large mesh
-    /// reproducible too, at 7-16x the factorisation time (21k-49k tets).
-    offline::SparseCholeskyMethod cholesky = offline::SparseCholeskyMethod::kAuto;
-  } solver;
-  offline::TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
-  bool mesh_options_given = false;
-  PointPairSet attachments;
-  PointPairSet landmarks;          ///< empty when absent
-  Eigen::MatrixXd icp_markers;     ///< #M by 3 (0 rows when absent)
-  std::string icp_markers_source;  ///< as PointPairSet::source
-  /// Surfaces in the template's frame carried along by the deformation (seed 003 §4.3, the
-  /// textured liver): written as OUTDIR/transfer_<name> (tools/register/transfer.hpp).
-  std::vector<std::string> transfer_paths;
-  /// "scan_image": OUTDIR/slices/slice_kNNN.png of the result's cross-sections (seed 003 Fig. 18,
-  /// tools/label/slice_pictures.hpp).
-  struct ScanImage {
-    std::string image;  ///< resolved path
-    std::string mask;   ///< resolved path, empty when none
-    int label = -1;
-    int slices = 6;
-    double window_low = -160, window_high = 240;
-  };
-  std::optional<ScanImage> scan_image;
-  std::string coordinate_system;   ///< "RAS"/"LPS" when a marker file said so, else ""
-  std::vector<std::string> notes;  ///< things the user should know (conversions, skipped points)
-  RegistrationWeights weights;
-  RegistrationStop stop;
-};
+// The structs the parser fills belong to the library (offline/registration/registration_case.hpp).
+using offline::LengthUnit;
+using offline::PointPairSet;
+using offline::RegistrationCase;
+using offline::RegistrationStop;
+using offline::RegistrationWeights;
+using offline::to_string;
 
 /// Reads and validates a case file and every marker file it names (the template itself is read
 /// by the caller). Throws InputError (tools/io/json_file.hpp) with a one-line message.

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 #include "tools/io/json_file.hpp"
 
@@ -313,6 +314,94 @@ std::optional<std::string> identification_mismatch(const nlohmann::json& saved,
     if (!now.contains(key)) return key + ": " + describe(value) + " in the checkpoint, none now";
   }
   return std::nullopt;
+}
+
+namespace {
+
+// 64-bit hash of a matrix's coefficients.
+template <typename Matrix>
+std::uint64_t hash_matrix(const Matrix& m, std::uint64_t hash = kFnvOffset) {
+  return fnv1a(m.data(), sizeof(typename Matrix::Scalar) * static_cast<std::size_t>(m.size()),
+               hash);
+}
+std::uint64_t hash_points(const std::vector<offline::EmbeddedPoint>& points, std::uint64_t hash) {
+  for (const offline::EmbeddedPoint& p : points) {
+    const long long tet = static_cast<long long>(p.tet);
+    hash = fnv1a(&tet, sizeof tet, hash);
+    hash = hash_matrix(p.weights, hash);
+  }
+  return hash;
+}
+std::uint64_t hash_constraints(const std::vector<offline::PointConstraint>& list,
+                               std::uint64_t hash) {
+  for (const offline::PointConstraint& c : list) {
+    hash = hash_points({c.point}, hash);
+    hash = hash_matrix(c.target, hash);
+    hash = fnv1a(&c.weight, sizeof c.weight, hash);
+  }
+  return hash;
+}
+std::string hex(std::uint64_t value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(value));
+  return text;
+}
+
+}  // namespace
+
+nlohmann::json run_identification(const offline::PreparedCase& p,
+                                  offline::SparseCholeskyMethod cholesky) {
+  const offline::GaussNewtonOptions& options = p.options;
+  const offline::RegistrationConstraints& constraints = p.constraints;
+  nlohmann::json identification;
+  identification["mode"] = p.free_object ? "free" : "attached";
+  // A free object's checkpointed state is in the template's frame since issue 18 (register_free
+  // moves the scan onto the template); an older checkpoint's is in the scan's.
+  if (p.free_object) identification["free_object_frame"] = "template";
+  identification["tet_vertices"] = p.rest.rows();
+  identification["tets"] = p.tets.rows();
+  identification["mesh_hash"] = hex(hash_matrix(p.tets, hash_matrix(p.rest)));
+  identification["attachments"] = constraints.attachments.size();
+  identification["landmarks"] = constraints.landmarks.size();
+  identification["icp_markers"] = constraints.icp_markers.size();
+  std::uint64_t h = hash_constraints(constraints.attachments, kFnvOffset);
+  h = hash_constraints(constraints.landmarks, h);
+  for (const Eigen::Vector3d& z : constraints.icp_markers) h = hash_matrix(z, h);
+  identification["markers_hash"] = hex(h);
+  identification["surface_hash"] =
+      hex(hash_matrix(p.surface_triangles, hash_points(p.surface_points, kFnvOffset)));
+  identification["options"] = {{"alpha", hex_double(options.alpha)},
+                               {"beta", hex_double(options.beta)},
+                               {"attachment_stiffness", hex_double(p.attachment_stiffness)},
+                               {"max_iterations_per_stage", options.max_iterations_per_stage},
+                               {"max_marker_error", hex_double(options.max_marker_error)},
+                               {"min_step", hex_double(options.min_step)},
+                               {"icp_stage_landmarks", options.icp_stage_landmarks},
+                               {"landmark_stage", options.landmark_stage},
+                               {"damped_step_trials", options.damped_step_trials},
+                               {"predictor_warm_start", options.predictor_warm_start},
+                               {"hold_clamped_tets", options.hold_clamped_tets},
+                               {"icp_no_progress_iterations", options.icp_no_progress_iterations},
+                               {"eigenvalue_floor", hex_double(options.eigenvalue_floor)},
+                               {"cholesky", offline::to_string(cholesky)}};
+  for (const double f : options.icp_weight_ramp)
+    identification["options"]["icp_weight_ramp"].push_back(hex_double(f));
+  return identification;
+}
+
+void check_resumable(const RegisterCheckpoint& saved, const nlohmann::json& identification,
+                     bool free_object, const std::filesystem::path& checkpoint,
+                     const std::string& case_path) {
+  if (const auto mismatch = identification_mismatch(saved.identification, identification)) {
+    throw InputError(checkpoint.string() + ": does not match " + case_path + " as it is now (" +
+                     *mismatch +
+                     "): the case, its template or its markers changed since the run "
+                     "started; start it again with --case");
+  }
+  if (saved.state && saved.state->free_object != free_object) {
+    throw InputError(checkpoint.string() + ": its state is of a " +
+                     (free_object ? "attached" : "free") + " object, the case's is not");
+  }
 }
 
 }  // namespace sinew::tools

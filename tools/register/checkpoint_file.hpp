@@ -14,6 +14,7 @@
 #include <string>
 
 #include "offline/gauss_newton.hpp"
+#include "offline/registration/register_case.hpp"
 
 namespace sinew::tools {
 
@@ -53,5 +54,16 @@ std::uint64_t fnv1a(const void* data, std::size_t bytes, std::uint64_t hash = kF
 
 /// A double as a C99 hex float ("0x1.8p+1") and back (exact).
 std::string hex_double(double value);
+
+/// What a checkpoint must match to be resumed with a case: mode, mesh, markers, output surface and
+/// options, as counts, 64-bit hashes (hex) and hex floats.
+nlohmann::json run_identification(const offline::PreparedCase& p,
+                                  offline::SparseCholeskyMethod cholesky);
+
+/// Throws InputError "<checkpoint>: does not match <case> as it is now (...)" when the case's
+/// identification (run_identification) or mode differs from the checkpoint's.
+void check_resumable(const RegisterCheckpoint& saved, const nlohmann::json& identification,
+                     bool free_object, const std::filesystem::path& checkpoint,
+                     const std::string& case_path);
 
 }  // namespace sinew::tools

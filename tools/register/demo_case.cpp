@@ -1,5 +1,7 @@
 #include "tools/register/demo_case.hpp"
 
+#include <fmt/core.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -269,6 +271,17 @@ void write_demo_case(const DemoCase& demo, const std::string& dir_name) {
       {"icp_markers", "markers.csv"},
       {"stop", {{"max_iterations", demo.options.max_iterations}}}};
   write_json_file((dir / "case.json").string(), case_json);
+}
+
+std::string demo_case_summary(const DemoCase& demo, const std::string& dir) {
+  return fmt::format(
+      "wrote {}/case.json: a {:g} x {:g} x {:g} mm capsule ({} vertices) attached at its x = 0 end "
+      "by {} points; {} ICP markers on its known deformation (free part {:g}x longer, bent {:.0f} "
+      "degrees; vertices move up to {:.1f} mm), {}/truth_surface.obj",
+      dir, demo.options.shape.length, 2 * demo.options.shape.radius_y,
+      2 * demo.options.shape.radius_z, demo.template_surface.vertices.rows(),
+      demo.attachment_points.rows(), demo.markers.rows(), 1 + demo.options.stretch,
+      demo.options.bend_radians * 180 / std::acos(-1.0), demo.max_displacement, dir);
 }
 
 }  // namespace sinew::tools

@@ -84,4 +84,8 @@ DemoCase make_demo_case(const DemoCaseOptions& options = {});
 /// InputError (tools/io/json_file.hpp) with one line when a file cannot be written.
 void write_demo_case(const DemoCase& demo, const std::string& dir);
 
+/// One line (no newline) saying what write_demo_case wrote into dir: the capsule, its
+/// attachments, markers and known deformation.
+std::string demo_case_summary(const DemoCase& demo, const std::string& dir);
+
 }  // namespace sinew::tools

@@ -1,4 +1,4 @@
-#include "tools/register/transfer.hpp"
+#include "offline/registration/transfer.hpp"
 
 #include <cctype>
 #include <cstdio>
@@ -7,9 +7,9 @@
 #include <sstream>
 
 #include "offline/io/surface_mesh_io.hpp"
-#include "tools/io/json_file.hpp"
+#include "offline/registration/registration_case.hpp"
 
-namespace sinew::tools {
+namespace sinew::offline {
 namespace fs = std::filesystem;
 
 long transfer_surface(const std::string& in_path, const std::string& out_path,
@@ -19,18 +19,18 @@ long transfer_surface(const std::string& in_path, const std::string& out_path,
   long moved = 0;
   if (extension != ".obj") {
     auto read = offline::io::read_surface_mesh(in_path);
-    if (!read.mesh) throw InputError(read.error);
+    if (!read.mesh) throw RegistrationInputError(read.error);
     for (Eigen::Index v = 0; v < read.mesh->vertices.rows(); ++v) {
       read.mesh->vertices.row(v) =
           transfer(read.mesh->vertices.row(v).transpose(), moved++).transpose();
     }
     std::string error;
     if (!out_path.empty() && !offline::io::write_surface_mesh(out_path, *read.mesh, &error))
-      throw InputError(error);
+      throw RegistrationInputError(error);
     return moved;
   }
   std::ifstream in(in_path);
-  if (!in) throw InputError(in_path + ": cannot open file for reading");
+  if (!in) throw RegistrationInputError(in_path + ": cannot open file for reading");
   std::ostringstream out;
   out.precision(17);
   std::string line;
@@ -40,8 +40,8 @@ long transfer_surface(const std::string& in_path, const std::string& out_path,
       std::istringstream s(line.substr(2));
       Eigen::Vector3d p;
       if (!(s >> p.x() >> p.y() >> p.z()) || !p.allFinite()) {
-        throw InputError(in_path + ":" + std::to_string(number) +
-                         ": expected 'v x y z' with finite numbers");
+        throw RegistrationInputError(in_path + ":" + std::to_string(number) +
+                                     ": expected 'v x y z' with finite numbers");
       }
       const Eigen::Vector3d q = transfer(p, moved++);
       out << "v " << q.x() << " " << q.y() << " " << q.z() << "\n";
@@ -54,10 +54,10 @@ long transfer_surface(const std::string& in_path, const std::string& out_path,
   {
     std::ofstream file(tmp, std::ios::binary);
     file << out.str();
-    if (!file) throw InputError(out_path + ": cannot write");
+    if (!file) throw RegistrationInputError(out_path + ": cannot write");
   }
   fs::rename(tmp, out_path);
   return moved;
 }
 
-}  // namespace sinew::tools
+}  // namespace sinew::offline

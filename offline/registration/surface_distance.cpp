@@ -1,4 +1,4 @@
-#include "tools/register/surface_distance.hpp"
+#include "offline/registration/surface_distance.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -8,7 +8,7 @@
 
 #include "offline/surface_closest_point.hpp"
 
-namespace sinew::tools {
+namespace sinew::offline {
 
 SurfaceDistance::SurfaceDistance(const offline::io::SurfaceMesh& surface) : surface_(surface) {
   const Eigen::Index num_triangles = surface_.triangles.rows();
@@ -186,4 +186,4 @@ Eigen::Vector3d SurfaceDistance::triangle_normal(Eigen::Index f) const {
   return length > 0.0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
 }
 
-}  // namespace sinew::tools
+}  // namespace sinew::offline

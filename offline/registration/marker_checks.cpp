@@ -1,10 +1,10 @@
-#include "tools/register/marker_checks.hpp"
+#include "offline/registration/marker_checks.hpp"
 
 #include <fmt/core.h>
 
-#include "tools/io/json_file.hpp"
+#include "offline/registration/registration_case.hpp"
 
-namespace sinew::tools {
+namespace sinew::offline {
 namespace {
 
 /// Euclidean distance from p to the box [lo, hi] (0 inside).
@@ -21,7 +21,7 @@ void check_points(const Eigen::MatrixXd& points, const std::string& source,
     const Eigen::Vector3d p = points.row(i).transpose();
     const double d = distance_to_box(p, lo, hi);
     if (d <= kMaxMarkerDiagonals * diagonal) continue;  // false for NaN too
-    throw InputError(fmt::format(
+    throw RegistrationInputError(fmt::format(
         "{}: {}[{}]: {} ({:.6g}, {:.6g}, {:.6g}) is {:.4g}{} from the template's bounding box, "
         "{:.3g} times its diagonal (the limit is {:g}); is it in the template's frame and units?",
         source, field, i, kind, p.x(), p.y(), p.z(), d, unit, d / diagonal, kMaxMarkerDiagonals));
@@ -43,4 +43,4 @@ void check_markers_near_template(const RegistrationCase& c, const Eigen::Vector3
   check_points(c.icp_markers, c.icp_markers_source, "icp_markers", "marker", lo, hi, unit);
 }
 
-}  // namespace sinew::tools
+}  // namespace sinew::offline

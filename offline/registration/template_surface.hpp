@@ -20,9 +20,9 @@
 
 #include "offline/gauss_newton.hpp"
 #include "offline/io/surface_mesh_io.hpp"
-#include "tools/register/surface_distance.hpp"
+#include "offline/registration/surface_distance.hpp"
 
-namespace sinew::tools {
+namespace sinew::offline {
 
 class TemplateSurfaceClosestPoint final : public offline::ClosestSurfacePoint {
  public:
@@ -53,4 +53,4 @@ class TemplateSurfaceClosestPoint final : public offline::ClosestSurfacePoint {
   std::vector<std::vector<Eigen::Index>> vertex_triangles_;  // triangles around each vertex
 };
 
-}  // namespace sinew::tools
+}  // namespace sinew::offline

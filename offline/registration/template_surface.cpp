@@ -1,9 +1,9 @@
-#include "tools/register/template_surface.hpp"
+#include "offline/registration/template_surface.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace sinew::tools {
+namespace sinew::offline {
 namespace {
 
 // Mean edge length of the tets at rest.
@@ -150,4 +150,4 @@ Eigen::Vector3d TemplateSurfaceClosestPoint::normal(const Eigen::Vector3d& query
   return length > 0.0 ? Eigen::Vector3d(sum / length) : own;
 }
 
-}  // namespace sinew::tools
+}  // namespace sinew::offline

@@ -12,17 +12,17 @@
 #include <functional>
 #include <string>
 
-namespace sinew::tools {
+namespace sinew::offline {
 
-/// Maps a template-frame point (user units) to its deformed position, or throws InputError naming
-/// the point when it is not inside or near the template mesh.
+/// Maps a template-frame point (user units) to its deformed position, or throws
+/// RegistrationInputError naming the point when it is not inside or near the template mesh.
 using PointTransfer = std::function<Eigen::Vector3d(const Eigen::Vector3d&, long index)>;
 
 /// Writes in_path's surface, every vertex moved by transfer, to out_path (atomically; nothing is
 /// written when out_path is empty, e.g. to embed and check the vertices first). Throws
-/// InputError (tools/io/json_file.hpp) for unreadable input, with file:line for bad OBJ lines.
-/// Returns the number of vertices moved.
+/// RegistrationInputError (offline/registration/registration_case.hpp) for unreadable input, with
+/// file:line for bad OBJ lines. Returns the number of vertices moved.
 long transfer_surface(const std::string& in_path, const std::string& out_path,
                       const PointTransfer& transfer);
 
-}  // namespace sinew::tools
+}  // namespace sinew::offline

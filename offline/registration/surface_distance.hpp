@@ -10,7 +10,7 @@
 
 #include "offline/io/surface_mesh_io.hpp"
 
-namespace sinew::tools {
+namespace sinew::offline {
 
 /// Closest-point distances to a fixed triangle surface, accelerated by a uniform grid of the
 /// triangles' bounding boxes (about as many cells as triangles; a query visits rings of cells
@@ -80,4 +80,4 @@ SymmetricSurfaceDistance sampled_surface_distance(const offline::io::SurfaceMesh
                                                   const offline::io::SurfaceMesh& b,
                                                   int samples = 30000, std::uint64_t seed = 1);
 
-}  // namespace sinew::tools
+}  // namespace sinew::offline
