@@ -105,6 +105,7 @@ LoadFit::LoadFit(const common::BeamDescription& beam, LoadFitOptions options)
 }
 
 void LoadFit::reset() noexcept {
+  base_offset_ = 0.0;
   u_.setZero();
   loads_prev_.setZero();
   q_.setZero();
@@ -148,13 +149,12 @@ void LoadFit::take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked,
   if (base_) u[2] = tracked[2] + q_[params_];
 }
 
-void LoadFit::parameter_columns() {
+bool LoadFit::parameter_columns() {
   // Node 0's rotation couples to fine node 1 only (the tangent is block-tridiagonal); the support
   // moved by 1 moves the free dofs by −K_ff⁻¹ K_f,θ0.
   const Eigen::Vector3d base_coupling = tangent_.lower(0).col(2);
   tangent_.apply_fixed_dofs(model_.fixed_mask());
-  factor_ready_ = factor_.factor(tangent_);
-  if (!factor_ready_) return;
+  if (!factor_.factor(tangent_)) return false;
   for (int j = 0; j < params_ + base_; ++j) {
     auto z = columns_.col(j);
     if (j < params_) {
@@ -173,6 +173,7 @@ void LoadFit::parameter_columns() {
     // The tracked follicle angle is what the fitted one replaces: not a measurement here.
     if (base_) jacobian_(2, j) = 0.0;
   }
+  return true;
 }
 
 void LoadFit::residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const Eigen::VectorXd& u) {
@@ -255,8 +256,7 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     for (int d = 0; d < dofs; ++d) {
       if (fixed[d]) rhs_[d] = 0.0;
     }
-    parameter_columns();
-    if (!factor_ready_) return false;
+    if (!parameter_columns()) return false;
     du_ = -rhs_;
     factor_.solve_in_place(du_);
     z_ = u_ + du_;
@@ -314,8 +314,7 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
     if (ok) break;  // the previous update was negligible: this equilibrium is the answer
 
     model_.evaluate(u_, nullptr, nullptr, &tangent_);
-    parameter_columns();
-    if (!factor_ready_) return false;
+    if (!parameter_columns()) return false;
     if (!step(true)) return false;
     change_.noalias() = jacobian_.leftCols(p) * dq_.head(p);
     const double change = change_.cwiseAbs().maxCoeff();
@@ -339,6 +338,9 @@ LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, co
   pp_ = directions ? 1 : per_point_;
   params_ = pp_ * std::clamp(count, 0, options_.max_load_points);
   if (params_ == 0) return summary;
+  // The follicle angle's parameter follows the loads': carry it over from the last call, whose
+  // load count may have differed.
+  if (base_) q_[params_] = base_offset_;
   u_backup_ = u_;
   q_backup_ = q_;
   int iterations = 0;
@@ -354,6 +356,7 @@ LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, co
     iterations = 0;
     ok = nested(tracked, &iterations, &equilibrium);
   }
+  if (base_) base_offset_ = q_[params_];
   summary.converged = ok;
   summary.equilibrium = equilibrium;
   summary.iterations = iterations;

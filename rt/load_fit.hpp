@@ -89,7 +89,7 @@ class LoadFit {
   Eigen::Ref<const Eigen::VectorXd> loads() const { return q_.head(params_); }
   /// The fitted offset of node 0's support rotation from the tracked one (radians; 0 unless
   /// options().fit_base_rotation).
-  double base_rotation() const { return base_ ? q_[params_] : 0.0; }
+  double base_rotation() const { return base_offset_; }
   /// The fitted equilibrium state of the subdivided beam.
   const Eigen::VectorXd& state() const { return u_; }
   /// Forgets the last fit: the next starts from the unloaded beam.
@@ -107,8 +107,9 @@ class LoadFit {
   void unit_load(int j, Eigen::Ref<Eigen::VectorXd> z) const;
   void take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked, Eigen::VectorXd& u) const;
   // The Jacobian columns (tangent solves) of every parameter into columns_ and jacobian_, from
-  // tangent_ as evaluated (before its fixed dofs are applied) and factor_.
-  void parameter_columns();
+  // tangent_ as evaluated (before its fixed dofs are applied), which it factorises into factor_.
+  // False when the factorisation fails.
+  bool parameter_columns();
 
   LoadFitOptions options_;
   std::string error_;
@@ -116,8 +117,8 @@ class LoadFit {
   common::StaticBeamSolver solver_;
   int parts_ = 1, n_ = 0, per_point_ = 2, params_ = 0;
   int base_ = 0;  // 1 when the support rotation of node 0 is a parameter (index params_)
-  bool factor_ready_ = false;           // parameter_columns() factorised the tangent
-  const int* points_ = nullptr;         // this call's load points
+  double base_offset_ = 0.0;     // the last fit's follicle angle offset (q_[params_] during a fit)
+  const int* points_ = nullptr;  // this call's load points
   const double* directions_ = nullptr;  // and their force directions (null: free)
   int pp_ = 2;                          // parameters per load point in this call
   double rotation_scale_ = 1.0;         // rotations enter the fit as arc lengths over one element
