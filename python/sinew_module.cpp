@@ -135,6 +135,38 @@ class PyTracker {
   long frames_ = 0;
 };
 
+// rt::detect_whiskers on one frame: the whiskers, and with keep_rejected the traces that were
+// not, with the reason.
+py::dict detect_whiskers(const py::array_t<std::uint8_t, py::array::c_style>& frame,
+                         const std::string& face, double min_length_px, bool keep_rejected) {
+  rt::WhiskerDetectionOptions o;
+  o.face = face_side(face);
+  o.min_length_px = min_length_px;
+  o.keep_rejected = keep_rejected;
+  const rt::ImageView view = grey_view(frame, "detect_whiskers");
+  rt::WhiskerDetection d;
+  {
+    py::gil_scoped_release release;
+    d = rt::detect_whiskers(view, o);
+  }
+  if (!d.error.empty()) throw py::value_error(d.error);
+  py::list whiskers, rejected;
+  for (const auto& w : d.whiskers) {
+    whiskers.append(py::dict(
+        py::arg("points") = points_array(w.points), py::arg("follicle") = xy(w.follicle),
+        py::arg("length_px") = w.length_px, py::arg("contrast_percent") = w.contrast_percent));
+  }
+  for (const auto& r : d.rejected) {
+    rejected.append(
+        py::dict(py::arg("points") = points_array(r.points), py::arg("reason") = r.reason));
+  }
+  return py::dict(py::arg("face") = rt::to_string(d.face), py::arg("backlight") = d.backlight,
+                  py::arg("noise_percent") = d.noise_percent,
+                  py::arg("seed_contrast") = d.seed_contrast,
+                  py::arg("follow_contrast") = d.follow_contrast, py::arg("seeds") = d.seeds,
+                  py::arg("whiskers") = whiskers, py::arg("rejected") = rejected);
+}
+
 // sinew-track --whiskers as a Python object (rt::WhiskerSession): the same results, frame by frame.
 class PyWhiskers {
  public:
@@ -318,6 +350,15 @@ The static equilibrium of a geometrically nonlinear plane beam under loads, as s
 computes it. beam: sinew-simulate's beam file, a path or the same content as a dict (nodes, fixed,
 material, loads, steps, options). Returns a dict with the keys of sinew-simulate's output: nodes
 (n x 3: x, y, theta), converged, iterations, status, load_steps, load_factor, residual.
+)doc");
+
+  m.def("detect_whiskers", &detect_whiskers, py::arg("frame"), py::arg("face") = "auto",
+        py::arg("min_length_px") = 40.0, py::arg("keep_rejected") = false, R"doc(
+Finds the whiskers of one grey frame (2-D uint8 numpy array) with no initialisation, as
+sinew-track --whiskers does on its first frame. Returns a dict: face, backlight, noise_percent,
+seed_contrast, follow_contrast, seeds, whiskers (points n x 2 from the follicle, follicle,
+length_px, contrast_percent) and, with keep_rejected, rejected (the traces that are not whiskers:
+points and reason).
 )doc");
 
   py::class_<PyWhiskers>(m, "Whiskers", R"doc(

@@ -3,11 +3,12 @@
 ``sinew.Tracker(init)`` tracks a beam-like object (a whisker, an antenna, a needle) through grey
 frames and recovers the forces that bend it; ``sinew.Whiskers(face=...)`` finds every whisker of a
 video on its first frame and tracks them all with their mechanics and contacts;
+``sinew.detect_whiskers(frame, face=...)`` finds them on one frame (with the traces it rejected);
 ``sinew.track_video(tracker, path)`` runs either over a video file frame by frame;
 ``sinew.simulate(beam)`` solves a beam's static equilibrium under loads. See the
 README's Python section.
 """
-from ._sinew import Tracker, Whiskers, simulate  # noqa: F401
+from ._sinew import Tracker, Whiskers, detect_whiskers, simulate  # noqa: F401
 
 
 def track_video(tracker, path):

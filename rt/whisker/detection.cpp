@@ -357,34 +357,66 @@ double polyline_length(const std::vector<Eigen::Vector2d>& pts) {
 // 5-grey-level whisker: 2.1 px sideways at the follicle, fading over its first 8 px). The fit is
 // extended from its first point along its tangent to the face's edge (the steepest fall of the
 // lightly smoothed image, refine_follicle), and the result resampled at 1 px. A trace with too
-// few points beyond the face keeps its own points; one the fit misses by more than max_residual_px
-// somewhere gives none (it is not one whisker).
+// few points beyond the face keeps its own points.
+//
+// A trace the fit misses by more than max_residual_px is not one whisker: where whiskers converge
+// towards the pad or cross, a trace hops from one to the next (shared video, frame 0: 2.2-2.5 px
+// off a cubic). It is cut at its worst point, on the side with fewer points (a hop near the face
+// leaves the outer part; one at the tip, the part at the face), and fitted again, while at least
+// min_length_px remain. A trace that does not reach the face (cut there, or it ended on a
+// converging neighbour's ridge) is extended along its tangent to the face when the face lies
+// within max_extension_px and the extension stays on a ridge (the neighbour's: they share it
+// there): it is reported from where it meets the face. Gives nothing when no such stretch is left.
 std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen::Vector2d>& points,
-                                          int degree, double clear_px, double max_residual_px) {
+                                          bool reaches_face, const WhiskerDetectionOptions& o,
+                                          bool* extended_out) {
+  *extended_out = false;
+  const double clear_px = o.surround_px + o.smoothing_clear_px;
   std::vector<double> s(points.size(), 0.0);
   for (std::size_t i = 1; i < points.size(); ++i) {
     s[i] = s[i - 1] + (points[i] - points[i - 1]).norm();
   }
   std::size_t first = 0;
   while (first < points.size() && face_distance(m, points[first]) < clear_px) ++first;
-  const std::size_t n = points.size() - first;
-  // A short stretch is fitted by a lower degree (one per 15 points): a cubic through 30 noisy
-  // points bends at its ends.
-  degree = std::min(degree, static_cast<int>(n / 15));
-  if (degree < 1) return points;
-  const double s0 = s[first], span = s.back() - s0;
-  if (!(span > 1.0)) return points;
-  Eigen::MatrixXd V(static_cast<Eigen::Index>(n), degree + 1);
-  Eigen::MatrixXd P(static_cast<Eigen::Index>(n), 2);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double u = (s[first + i] - s0) / span;
-    double power = 1.0;
-    for (int k = 0; k <= degree; ++k, power *= u) V(static_cast<Eigen::Index>(i), k) = power;
-    P.row(static_cast<Eigen::Index>(i)) = points[first + i].transpose();
+  std::size_t last = points.size() - 1;
+  if (first > last) return points;
+  bool cut_at_face = false;
+  int degree = 0;
+  double s0 = 0.0, span = 0.0;
+  Eigen::MatrixXd c;
+  for (;;) {
+    const std::size_t n = last - first + 1;
+    // A short stretch is fitted by a lower degree (one per 15 points): a cubic through 30 noisy
+    // points bends at its ends.
+    degree = std::min(o.smoothing_degree, static_cast<int>(n / 15));
+    s0 = s[first];
+    span = s[last] - s0;
+    if (degree < 1 || !(span > 1.0)) {
+      if (cut_at_face || last + 1 < points.size()) return {};
+      return points;
+    }
+    Eigen::MatrixXd V(static_cast<Eigen::Index>(n), degree + 1);
+    Eigen::MatrixXd P(static_cast<Eigen::Index>(n), 2);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double u = (s[first + i] - s0) / span;
+      double power = 1.0;
+      for (int k = 0; k <= degree; ++k, power *= u) V(static_cast<Eigen::Index>(i), k) = power;
+      P.row(static_cast<Eigen::Index>(i)) = points[first + i].transpose();
+    }
+    c = V.colPivHouseholderQr().solve(P);
+    Eigen::Index worst = 0;
+    if ((V * c - P).rowwise().norm().maxCoeff(&worst) <= o.smoothing_max_residual_px) break;
+    // Cut 5 px beyond the worst point, on the side with fewer points.
+    const std::size_t k = first + static_cast<std::size_t>(worst);
+    if (!o.repair_traces) return {};
+    if (k - first > last - k) {
+      last = k > first + 5 ? k - 5 : first;
+    } else {
+      first = k + 5;
+      cut_at_face = true;
+    }
+    if (first >= last || s[last] - s[first] < o.min_length_px) return {};
   }
-  const Eigen::MatrixXd c = V.colPivHouseholderQr().solve(P);
-  // Whiskers are smooth: a trace no such curve follows is two whiskers, or a whisker and fur.
-  if ((V * c - P).rowwise().norm().maxCoeff() > max_residual_px) return {};
   auto at = [&](double u) {
     Eigen::Vector2d p = Eigen::Vector2d::Zero();
     for (int k = degree; k >= 0; --k) p = p * u + c.row(k).transpose();
@@ -397,14 +429,41 @@ std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen
   };
   const Eigen::Vector2d start = at(0.0);
   Eigen::Vector2d t = tangent_at(0.0);
-  if (!(t.norm() > 0.0)) return points;
+  if (!(t.norm() > 0.0)) {
+    if (cut_at_face || last + 1 < points.size()) return {};
+    return points;
+  }
   t.normalize();
   // Back to the face along the tangent: into the dark mask (which lies ~2 px inside the edge),
-  // at most as far as the raw trace went.
+  // at most as far as the raw trace went, or, for a trace that did not reach the face,
+  // max_extension_px.
+  const bool extended = o.repair_traces && (cut_at_face || !reaches_face);
+  *extended_out = extended;
   std::vector<Eigen::Vector2d> out;
-  const double reach = s0 + 4.0;
+  const double reach = extended ? s0 + o.max_extension_px : s0 + 4.0;
   double back = 0.0;
   while (back < reach && !is_dark(m, start - back * t)) back += 0.5;
+  if (extended) {
+    if (!is_dark(m, start - back * t)) return {};
+    // The extension beyond the trace's own points lies on a ridge where the measure can see one
+    // (farther than the side samples from the face).
+    int seen = 0, on = 0;
+    for (double b = 1.0; b < back; b += 1.0) {
+      const Eigen::Vector2d q = start - b * t;
+      if (face_distance(m, q) < o.surround_px + 1.0) continue;
+      ++seen;
+      // Where whiskers converge a side sample of the ridge measure falls on the neighbour and the
+      // measure reads ~0; the band they form is still darker than the backlight beside it.
+      float centre = 0.0f, left = 0.0f, right = 0.0f;
+      const Eigen::Vector2d side(-t.y() * 5.0, t.x() * 5.0);
+      const bool band = sample(m.smooth, q.x(), q.y(), &centre) &&
+                        sample(m.smooth, q.x() + side.x(), q.y() + side.y(), &left) &&
+                        sample(m.smooth, q.x() - side.x(), q.y() - side.y(), &right) &&
+                        centre < 0.5f * (left + right) - 0.01f * std::max(left, right);
+      on += contrast_at(m, q) >= m.follow || band;
+    }
+    if (seen > 0 && on < 0.6 * seen) return {};
+  }
   for (double b = 0.0; b < back + 0.5; b += 1.0) out.push_back(start - b * t);
   if (out.size() >= 2) refine_follicle(m, &out);  // the face at the back
   std::reverse(out.begin(), out.end());
@@ -412,7 +471,8 @@ std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen
   // The trace itself reached the face (ended_dark): its follicle and the extension's agree
   // within the trace's noise; one that does not is a trace whose start turns (a hop between
   // converging whiskers).
-  if (out.empty() || (out.front() - points.front()).norm() > 4.0) return points;
+  if (!extended && (out.empty() || (out.front() - points.front()).norm() > 4.0)) return points;
+  if (out.empty()) return {};
   const int samples = std::max(2, static_cast<int>(std::ceil(span)));
   for (int k = 0; k <= samples; ++k) out.push_back(at(static_cast<double>(k) / samples));
   return out;
@@ -482,6 +542,10 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
   if (!(smoothing_max_residual_px > 0.0)) {
     return field_error("smoothing_max_residual_px", smoothing_max_residual_px, "must be > 0");
   }
+  if (!(max_extension_px >= 0.0)) {
+    return field_error("max_extension_px", max_extension_px, "must be >= 0");
+  }
+  if (!(pad_extent_px >= 0.0)) return field_error("pad_extent_px", pad_extent_px, "must be >= 0");
   if (max_whiskers < 1) return field_error("max_whiskers", max_whiskers, "must be >= 1");
   return std::nullopt;
 }
@@ -540,7 +604,11 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
       cv::circle(claimed, cv::Point(int(std::lround(p.x())), int(std::lround(p.y()))), 1, 255, -1);
     }
   };
-  std::vector<DetectedWhisker> found;
+  struct Candidate {
+    DetectedWhisker whisker;
+    bool extended = false;  // its follicle is an extension along its tangent (smooth_trace)
+  };
+  std::vector<Candidate> found;
   for (const Seed& seed : seeds) {
     const int sx = static_cast<int>(seed.p.x()), sy = static_cast<int>(seed.p.y());
     if (claimed.at<std::uint8_t>(sy, sx)) continue;
@@ -563,41 +631,106 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     DetectedWhisker w;
     for (std::size_t i = b.points.size(); i-- > 1;) w.points.push_back(b.points[i]);
     w.points.insert(w.points.end(), a.points.begin(), a.points.end());
-    claim(w.points);
-    if (o.smoothing_degree > 0) {
-      w.points = smooth_trace(m, w.points, o.smoothing_degree, o.surround_px + o.smoothing_clear_px,
-                              o.smoothing_max_residual_px);
-      if (w.points.size() < 2) continue;
-    }
-    w.follicle = w.points.front();
-    w.length_px = polyline_length(w.points);
-    w.contrast_percent = median_contrast(m, w.points);
-    float farthest = 0.0f;
-    for (const auto& p : w.points) farthest = std::max(farthest, face_distance(m, p));
+    auto reject = [&](const std::vector<Eigen::Vector2d>& points, const char* reason) {
+      if (o.keep_rejected) result.rejected.push_back({points, reason});
+    };
     // A whisker starts at the face and leaves it; a thin structure of the apparatus, far darker
     // than a backlit hair, is not one.
-    // The mask lies ~2 px inside the edge the follicle was refined to.
-    const bool starts_at_face = face_distance(m, w.follicle) <= 4.0;
-    const bool leaves = farthest >= o.pad_band_px;
-    const bool rod = w.contrast_percent > o.max_contrast;
-    if (starts_at_face && leaves && !rod && w.length_px >= o.min_length_px) {
-      found.push_back(std::move(w));
+    auto consider = [&](std::vector<Eigen::Vector2d> points, bool extended) {
+      DetectedWhisker c;
+      c.points = std::move(points);
+      c.follicle = c.points.front();
+      c.length_px = polyline_length(c.points);
+      c.contrast_percent = median_contrast(m, c.points);
+      float farthest = 0.0f;
+      for (const auto& p : c.points) farthest = std::max(farthest, face_distance(m, p));
+      // The mask lies ~2 px inside the edge the follicle was refined to.
+      if (face_distance(m, c.follicle) > 4.0) {
+        reject(c.points, "not at the face");
+      } else if (farthest < o.pad_band_px) {
+        reject(c.points, "does not leave the face");
+      } else if (c.contrast_percent > o.max_contrast) {
+        reject(c.points, "too dark");
+      } else if (c.length_px < o.min_length_px) {
+        reject(c.points, "too short");
+      } else {
+        found.push_back({std::move(c), extended});
+      }
+    };
+    if (o.smoothing_degree == 0) {
+      claim(w.points);
+      consider(w.points, false);
+      continue;
     }
+    bool extended = false;
+    std::vector<Eigen::Vector2d> smooth = smooth_trace(m, w.points, b.ended_dark, o, &extended);
+    if (o.repair_traces && !a.ended_dark && !b.ended_dark) {
+      // Neither end reached the face, and the nearer one need not be the follicle (a tip that
+      // ends beside the cheek): both are candidates, the pad decides (below).
+      bool reversed_extended = false;
+      std::vector<Eigen::Vector2d> reversed =
+          smooth_trace(m, std::vector<Eigen::Vector2d>(w.points.rbegin(), w.points.rend()), false,
+                       o, &reversed_extended);
+      if (reversed.size() >= 2) {
+        if (smooth.size() >= 2)
+          consider(reversed, reversed_extended);
+        else
+          smooth.swap(reversed), extended = reversed_extended;
+      }
+    }
+    if (smooth.size() < 2 && !o.repair_traces) claim(w.points);
+    if (smooth.size() < 2) {
+      // Repairing, only the stretch around the seed is claimed: other seeds of the whiskers
+      // this trace hopped between are traced on their own.
+      const std::size_t at = b.points.size() - 1;
+      claim({w.points.begin() + static_cast<std::ptrdiff_t>(at - std::min<std::size_t>(at, 10)),
+             w.points.begin() + static_cast<std::ptrdiff_t>(std::min(w.points.size(), at + 11))});
+      reject(w.points, "not smooth");
+      continue;
+    }
+    claim(w.points);
+    consider(std::move(smooth), extended);
   }
 
+  // A trace extended to the face names a follicle the image did not show: it is kept only on the
+  // pad, within pad_extent_px of a follicle a trace reached by itself (a tip that ends beside the
+  // cheek, extended, would name one there).
+  std::vector<Eigen::Vector2d> seen_follicles;
+  for (const Candidate& c : found) {
+    if (!c.extended) seen_follicles.push_back(c.whisker.follicle);
+  }
+  found.erase(std::remove_if(found.begin(), found.end(),
+                             [&](const Candidate& c) {
+                               if (!c.extended) return false;
+                               for (const auto& f : seen_follicles) {
+                                 if ((f - c.whisker.follicle).norm() <= o.pad_extent_px) {
+                                   return false;
+                                 }
+                               }
+                               if (o.keep_rejected) {
+                                 result.rejected.push_back({c.whisker.points, "off the pad"});
+                               }
+                               return true;
+                             }),
+              found.end());
+
   // The longest first; a trace running along an accepted one over most of its length is it.
-  std::sort(found.begin(), found.end(), [](const DetectedWhisker& a, const DetectedWhisker& b) {
-    return a.length_px > b.length_px;
+  std::sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
+    return a.whisker.length_px > b.whisker.length_px;
   });
   cv::Mat taken = cv::Mat::zeros(m.contrast.size(), CV_8U);
   const int radius = std::max(1, static_cast<int>(std::lround(o.min_separation_px)));
-  for (auto& w : found) {
+  for (auto& candidate : found) {
+    DetectedWhisker& w = candidate.whisker;
     if (static_cast<int>(result.whiskers.size()) >= o.max_whiskers) break;
     int on = 0;
     for (const auto& p : w.points) {
       on += taken.at<std::uint8_t>(int(std::lround(p.y())), int(std::lround(p.x()))) != 0;
     }
-    if (on > 0.5 * static_cast<double>(w.points.size())) continue;
+    if (on > 0.5 * static_cast<double>(w.points.size())) {
+      if (o.keep_rejected) result.rejected.push_back({w.points, "runs along a longer whisker"});
+      continue;
+    }
     for (std::size_t i = 1; i < w.points.size(); ++i) {
       cv::line(taken, cv::Point2d(w.points[i - 1].x(), w.points[i - 1].y()),
                cv::Point2d(w.points[i].x(), w.points[i].y()), 255, 2 * radius - 1);

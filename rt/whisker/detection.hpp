@@ -65,6 +65,16 @@ struct WhiskerDetectionOptions {
   int smoothing_degree = 3;
   double smoothing_clear_px = 8.0;
   double smoothing_max_residual_px = 1.5;
+  /// Repair such traces instead: cut one at its worst point and fit it again while min_length_px
+  /// remain; extend one that does not reach the face (cut there, or ending on a converging
+  /// neighbour's ridge, or whose nearer end is a tip beside the cheek) along its tangent to the
+  /// face over at most max_extension_px, on a ridge or a dark band, pixels; keep an extended one
+  /// only when its follicle lies within pad_extent_px of one a trace reached by itself. Off by
+  /// default: on the shared video it finds more whiskers (frame 0: 6 against 5, the peer 7), but
+  /// tracking them with detection on every frame loses more than it gains (docs/tracker.md).
+  bool repair_traces = false;
+  double max_extension_px = 25.0;
+  double pad_extent_px = 30.0;
   /// Shortest whisker reported, pixels.
   double min_length_px = 40.0;
   /// The face and other objects: smoothed intensity below this fraction of the backlight, (0, 1).
@@ -79,6 +89,9 @@ struct WhiskerDetectionOptions {
   double min_separation_px = 2.0;
   /// At most this many whiskers are reported (the longest), ≥ 1.
   int max_whiskers = 64;
+  /// Keep the traces that were not accepted, with the reason (WhiskerDetection::rejected): for a
+  /// user asking why a whisker was not found, and for an overlay.
+  bool keep_rejected = false;
 
   std::optional<std::string> validate() const;
 };
@@ -88,6 +101,13 @@ struct DetectedWhisker {
   Eigen::Vector2d follicle = Eigen::Vector2d::Zero();  ///< where the trace meets the face
   double length_px = 0.0;
   double contrast_percent = 0.0;  ///< median ridge contrast along the trace
+};
+
+/// A trace that is not a whisker, and why (WhiskerDetectionOptions::keep_rejected).
+struct RejectedTrace {
+  std::vector<Eigen::Vector2d> points;  ///< as traced (before smoothing), follicle end first
+  std::string reason;  ///< "not smooth", "not at the face", "does not leave the face",
+                       ///< "too dark", "too short", "runs along a longer whisker"
 };
 
 struct WhiskerDetection {
@@ -102,7 +122,8 @@ struct WhiskerDetection {
   /// that is not the face (a pole, a lick port: what a whisker can touch), pixels, capped at
   /// 255; empty when there is no such object. See rt/whisker/contact.hpp.
   std::vector<float> object_distance;
-  std::string error;  ///< empty on success (bad options, no face found)
+  std::vector<RejectedTrace> rejected;  ///< only with keep_rejected
+  std::string error;                    ///< empty on success (bad options, no face found)
 };
 
 /// Detects the whiskers of one 8-bit grey frame.

@@ -57,6 +57,24 @@ def test_same_whiskers_as_sinew_track(pad):
         assert g["points"].shape[1] == 2
 
 
+def test_detect_whiskers_on_one_frame(pad):
+    """sinew.detect_whiskers finds on the first frame what sinew-track found there, and with
+    keep_rejected says why the other traces were not whiskers."""
+    detection, _, frames = pad
+    found = sinew.detect_whiskers(frames[0], face="left", keep_rejected=True)
+    assert found["face"] == "left"
+    assert len(found["whiskers"]) == len(detection["whiskers"]) >= 8
+    for g, w in zip(found["whiskers"], detection["whiskers"]):
+        np.testing.assert_allclose(g["follicle"], w["follicle"], rtol=0, atol=1e-9)
+        assert g["length_px"] == pytest.approx(w["length_px"], rel=1e-9)
+    reasons = {"not smooth", "not at the face", "does not leave the face", "too dark",
+               "too short", "runs along a longer whisker", "off the pad"}
+    assert all(r["reason"] in reasons and r["points"].shape[1] == 2 for r in found["rejected"])
+    assert not sinew.detect_whiskers(frames[0], face="left")["rejected"]
+    with pytest.raises(ValueError, match="no dark region touches the right border"):
+        sinew.detect_whiskers(frames[0], face="right")
+
+
 def test_bad_options_raise():
     with pytest.raises(ValueError, match="face"):
         sinew.Whiskers(face="sideways")

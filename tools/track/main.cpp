@@ -383,6 +383,7 @@ int main(int argc, char** argv) {
   bool whiskers = false;
   std::string face = "auto";
   double min_length = 40.0;
+  bool repair_traces = false;
   std::string redetect = "every";
   sinew::rt::WhiskerReadoutOptions readout;
   std::vector<double> curvature_window;
@@ -394,6 +395,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "left", "right", "top", "bottom"}));
   app.add_option("--min-length-px", min_length, "--whiskers: shortest whisker reported")
       ->check(CLI::NonNegativeNumber);
+  app.add_flag("--repair-traces", repair_traces,
+               "--whiskers: cut traces that hop between converging whiskers and extend them to "
+               "the face (finds more whiskers in a dense pad; see docs/tracker.md)");
   app.add_option("--redetect", redetect,
                  "--whiskers: detect again after tracking on every frame (default; cameras "
                  "below ~200 fps, whose whiskers move further than the search reaches), only on "
@@ -477,6 +481,7 @@ int main(int argc, char** argv) {
       w.count = args.count;
       w.quiet = args.quiet;
       w.min_length_px = min_length;
+      w.repair_traces = repair_traces;
       w.redetect = redetect;
       w.rest_frame = rest_frame;
       w.rest_frames = rest_frames;

@@ -104,6 +104,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   rt::WhiskerSessionOptions session_options;
   session_options.detection.face = parse_face(args.face);
   session_options.detection.min_length_px = args.min_length_px;
+  session_options.detection.repair_traces = args.repair_traces;
   session_options.readout = args.readout;
   session_options.rest_frame = args.rest_frame;
   session_options.rest_frames = args.rest_frames;

@@ -16,6 +16,7 @@ struct WhiskerTrackArgs {
   int first = 0, stride = 1, count = -1;
   bool quiet = false;
   double min_length_px = 40.0;
+  bool repair_traces = false;  ///< rt::WhiskerDetectionOptions::repair_traces
   /// Detection after tracking, for rt::WhiskerTracker::associate: "every" frame (a 25–100 fps
   /// camera, whose whiskers move further between frames than the search reaches), only on frames
   /// with a "lost" whisker (a high-speed camera), or "never".
