@@ -23,6 +23,7 @@ if(SINEW_BUILD_OFFLINE)
   find_library(SUITESPARSECONFIG_LIBRARY suitesparseconfig REQUIRED)
   find_library(OPENBLAS_LIBRARY openblas REQUIRED)
   add_library(sinew_cholmod INTERFACE)
+  set_target_properties(sinew_cholmod PROPERTIES EXPORT_NAME cholmod)
   target_include_directories(sinew_cholmod SYSTEM INTERFACE ${CHOLMOD_INCLUDE_DIR})
   target_link_libraries(sinew_cholmod INTERFACE ${CHOLMOD_LIBRARY} ${SUITESPARSECONFIG_LIBRARY}
                                                 ${OPENBLAS_LIBRARY})
