@@ -15,6 +15,19 @@
 #include "rt/whisker/session.hpp"
 #include "tools/simulate/simulation.hpp"
 #include "tools/track/track_init.hpp"
+#ifdef SINEW_PYTHON_OFFLINE
+#include <pybind11/eigen.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include "common/timing.hpp"
+#include "offline/registration/register_case.hpp"
+#include "tools/io/json_file.hpp"
+#include "tools/register/case_file.hpp"
+#include "tools/register/outputs.hpp"
+#endif
 
 namespace py = pybind11;
 using namespace sinew;
@@ -66,6 +79,9 @@ py::array_t<double> points_array(const std::vector<Eigen::Vector2d>& points) {
   }
   return a;
 }
+
+template <typename T>
+using RowMatrixOf = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 py::tuple xy(const Eigen::Vector2d& p) {
   return py::make_tuple(p.x(), p.y());
@@ -166,6 +182,67 @@ py::dict detect_whiskers(const py::array_t<std::uint8_t, py::array::c_style>& fr
                   py::arg("follow_contrast") = d.follow_contrast, py::arg("seeds") = d.seeds,
                   py::arg("whiskers") = whiskers, py::arg("rejected") = rejected);
 }
+
+#ifdef SINEW_PYTHON_OFFLINE
+// sinew-register as a call: the case (a path or a dict) registered by offline::register_case, the
+// result as numpy arrays and report.json's content; with out_dir, sinew-register's files too.
+py::dict register_case(const py::object& source, const std::optional<std::string>& out_dir,
+                       std::optional<int> max_iterations, bool quiet) {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point run_start = Clock::now();
+  std::string name;
+  offline::RegistrationCase c;
+  tools::ScanImages scan;
+  const tools::Log log(quiet);
+  try {
+    const nlohmann::json doc = json_of(source, "register(case)", &name);
+    c = tools::parse_registration_case(doc, name);
+    if (out_dir) scan = tools::read_scan_images(c, log);
+  } catch (const tools::InputError& e) {
+    throw py::value_error(e.what());
+  }
+  const double reading = common::seconds_since(run_start);
+  offline::RegisterCaseOptions options;
+  options.max_iterations = max_iterations;
+  offline::RegisterCaseHooks hooks;
+  hooks.message = [&](const std::string& line) { log.line("{}", line); };
+  std::optional<tools::RegisterOutputs> out;
+  if (out_dir) {
+    out = tools::RegisterOutputs{std::filesystem::path(*out_dir)};
+    hooks.prepared = [&](const offline::PreparedCase&) { tools::prepare_output_dir(*out, c); };
+  }
+  offline::RegisterCaseResult r;
+  try {
+    py::gil_scoped_release release;
+    r = offline::register_case(c, options, hooks);
+  } catch (const offline::RegistrationInputError& e) {
+    throw py::value_error(e.what());
+  } catch (const tools::InputError& e) {
+    throw py::value_error(e.what());
+  }
+  const Clock::time_point writing_start = Clock::now();
+  nlohmann::json report = tools::registration_report(c, r, name, 0);
+  std::vector<std::string> written;
+  if (out) {
+    written = tools::write_result_files(*out, c, r, scan, report, log);
+    tools::write_report(*out, r, reading, common::seconds_since(writing_start),
+                        common::seconds_since(run_start), report, written);
+  }
+  const py::object json_loads = py::module_::import("json").attr("loads");
+  py::dict result(py::arg("usable") = r.registration.summary.usable(),
+                  py::arg("report") = json_loads(report.dump()), py::arg("written") = written);
+  if (r.shape) {
+    const RowMatrixOf<double> vertices = r.shape->surface.vertices;
+    result["vertices"] = vertices;
+    result["faces"] = RowMatrixOf<int>(r.shape->surface.triangles);
+    result["tet_vertices"] = RowMatrixOf<double>(r.shape->mesh.vertices);
+    result["tets"] = RowMatrixOf<int>(r.shape->mesh.tets);
+    result["Fp"] = RowMatrixOf<double>(r.shape->Fp);
+    result["marker_errors"] = r.shape->marker_errors;
+  }
+  return result;
+}
+#endif
 
 // sinew-track --whiskers as a Python object (rt::WhiskerSession): the same results, frame by frame.
 class PyWhiskers {
@@ -352,6 +429,19 @@ material, loads, steps, options). Returns a dict with the keys of sinew-simulate
 (n x 3: x, y, theta), converged, iterations, status, load_steps, load_factor, residual.
 )doc");
 
+#ifdef SINEW_PYTHON_OFFLINE
+  m.def("register", &register_case, py::arg("case"), py::arg("out_dir") = py::none(),
+        py::arg("max_iterations") = py::none(), py::arg("quiet") = true, R"doc(
+Registers a case as sinew-register does (offline::register_case): case is a case file's path or
+the same content as a dict (relative file names then resolve against the working folder).
+max_iterations overrides the case's stop.max_iterations; quiet=False prints the progress lines.
+With out_dir, sinew-register's files are written there too (result_surface.obj, result.vtu,
+report.json, plots). Returns a dict: usable, report (report.json's content), written (paths) and,
+for a usable registration, vertices (n x 3) and faces (m x 3) of the deformed surface, tet_vertices
+and tets of the deformed tet mesh, Fp (per tet, row-major 3x3 as 9 columns) and marker_errors, in
+the case's units. Bad input raises ValueError with the one-line message sinew-register prints.
+)doc");
+#endif
   m.def("detect_whiskers", &detect_whiskers, py::arg("frame"), py::arg("face") = "auto",
         py::arg("min_length_px") = 40.0, py::arg("keep_rejected") = false, R"doc(
 Finds the whiskers of one grey frame (2-D uint8 numpy array) with no initialisation, as

@@ -5,10 +5,17 @@ frames and recovers the forces that bend it; ``sinew.Whiskers(face=...)`` finds 
 video on its first frame and tracks them all with their mechanics and contacts;
 ``sinew.detect_whiskers(frame, face=...)`` finds them on one frame (with the traces it rejected);
 ``sinew.track_video(tracker, path)`` runs either over a video file frame by frame;
-``sinew.simulate(beam)`` solves a beam's static equilibrium under loads. See the
+``sinew.simulate(beam)`` solves a beam's static equilibrium under loads;
+``sinew.register(case)`` registers a template to scan markers as sinew-register does (when the
+offline library is built). See the
 README's Python section.
 """
 from ._sinew import Tracker, Whiskers, detect_whiskers, simulate  # noqa: F401
+
+try:
+    from ._sinew import register  # noqa: F401
+except ImportError:  # built without offline/
+    pass
 
 
 def track_video(tracker, path):

@@ -216,7 +216,10 @@ bool is_tet_mesh_path(const std::string& path) {
 }
 
 RegistrationCase read_registration_case(const std::string& path) {
-  const nlohmann::json doc = read_json_file(path);
+  return parse_registration_case(read_json_file(path), path);
+}
+
+RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::string& path) {
   const JsonCursor root(doc, path);
   root.expect_keys({"template", "units", "mesh", "attachments", "landmarks", "icp_markers",
                     "weights", "stop", "solver", "transfer", "scan_image"});

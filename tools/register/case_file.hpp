@@ -52,6 +52,8 @@
 /// μ·diagonal (appendix G: scaling the stiffness is equivalent to scaling the weights). The same
 /// numbers therefore suit a liver in millimetres and a bar in metres.
 
+#include <nlohmann/json.hpp>
+
 #include <string>
 
 #include "offline/registration/registration_case.hpp"
@@ -69,6 +71,11 @@ using offline::to_string;
 /// Reads and validates a case file and every marker file it names (the template itself is read
 /// by the caller). Throws InputError (tools/io/json_file.hpp) with a one-line message.
 RegistrationCase read_registration_case(const std::string& path);
+
+/// The same for a case already parsed (the Python module's dict): path names it in messages, and
+/// relative file names in it are resolved against path's folder ("" or a bare name: the working
+/// folder).
+RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::string& path);
 
 /// True for the tet-mesh extensions .mesh, .veg, .node, .ele (case-insensitive).
 bool is_tet_mesh_path(const std::string& path);
