@@ -23,11 +23,11 @@
 
 #include "common/material/stable_neo_hookean.hpp"
 #include "common/timing.hpp"
-#include "offline/constraints.hpp"
-#include "offline/gauss_newton.hpp"
-#include "offline/plastic_elastic_energy.hpp"
-#include "offline/plastic_strain_laplacian.hpp"
-#include "offline/woodbury_solver.hpp"
+#include "offline/constraints/constraints.hpp"
+#include "offline/linalg/woodbury_solver.hpp"
+#include "offline/plastic/plastic_elastic_energy.hpp"
+#include "offline/plastic/plastic_strain_laplacian.hpp"
+#include "offline/registration/gauss_newton.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
 
 namespace {

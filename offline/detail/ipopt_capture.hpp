@@ -1,7 +1,7 @@
 #pragma once
-/// Ipopt helpers shared by the equilibrium solvers (offline/equilibrium.cpp,
-/// offline/free_equilibrium.cpp): one Ipopt run with the derivative checker's verdict captured
-/// from Ipopt's messages. Includes Ipopt: for those .cpp files only.
+/// Ipopt helpers shared by the equilibrium solvers (offline/equilibrium/equilibrium.cpp,
+/// offline/equilibrium/free_equilibrium.cpp): one Ipopt run with the derivative checker's verdict
+/// captured from Ipopt's messages. Includes Ipopt: for those .cpp files only.
 
 #include <IpIpoptApplication.hpp>
 #include <IpJournalist.hpp>
@@ -10,7 +10,7 @@
 #include <optional>
 #include <string>
 
-#include "offline/equilibrium.hpp"
+#include "offline/equilibrium/equilibrium.hpp"
 
 namespace sinew::offline::detail {
 

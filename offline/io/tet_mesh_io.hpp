@@ -24,12 +24,9 @@
 #include <utility>
 #include <vector>
 
-namespace sinew::offline {
+#include "offline/meshing/tet_mesh.hpp"
 
-struct TetMesh {
-  Eigen::Matrix<double, Eigen::Dynamic, 3> vertices;  ///< #V by 3
-  Eigen::Matrix<int, Eigen::Dynamic, 4> tets;         ///< #T by 4, 0-based vertex indices
-};
+namespace sinew::offline {
 
 struct TetMeshReadOptions {
   /// When every tet is negatively oriented: swap two vertices of each (true) or report the first

@@ -7,7 +7,7 @@
 #include <limits>
 #include <random>
 
-#include "offline/surface_closest_point.hpp"
+#include "offline/meshing/surface_closest_point.hpp"
 
 namespace sinew::offline {
 namespace {

@@ -11,14 +11,14 @@
 
 #include "common/material/stable_neo_hookean.hpp"
 #include "common/timing.hpp"
-#include "offline/constraints.hpp"
-#include "offline/plastic_elastic_energy.hpp"
-#include "offline/plastic_strain.hpp"
+#include "offline/constraints/constraints.hpp"
+#include "offline/meshing/surface_closest_point.hpp"
+#include "offline/plastic/plastic_elastic_energy.hpp"
+#include "offline/plastic/plastic_strain.hpp"
 #include "offline/registration/marker_checks.hpp"
 #include "offline/registration/surface_distance.hpp"
 #include "offline/registration/template_surface.hpp"
 #include "offline/registration/transfer.hpp"
-#include "offline/surface_closest_point.hpp"
 
 namespace sinew::offline {
 
@@ -491,8 +491,8 @@ io::SurfaceMesh deformed_surface(const PreparedCase& p, const Eigen::VectorXd& x
   return deformed;
 }
 
-// Where the data pins the result (offline/marker_coverage.hpp): the final stage's markers (ICP
-// markers, else landmarks) and the attachments' targets, all in the normalised frame.
+// Where the data pins the result (offline/registration/marker_coverage.hpp): the final stage's
+// markers (ICP markers, else landmarks) and the attachments' targets, all in the normalised frame.
 MarkerCoverage result_coverage(const RegistrationConstraints& constraints,
                                const Eigen::MatrixXd& vertices, const Eigen::MatrixXi& triangles) {
   std::vector<Eigen::Vector3d> pinned;

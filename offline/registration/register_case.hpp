@@ -22,11 +22,11 @@
 #include <string>
 #include <vector>
 
-#include "offline/gauss_newton.hpp"
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/io/tet_mesh_io.hpp"
-#include "offline/marker_coverage.hpp"
 #include "offline/meshing/tet_mesher.hpp"
+#include "offline/registration/gauss_newton.hpp"
+#include "offline/registration/marker_coverage.hpp"
 #include "offline/registration/registration_case.hpp"
 
 namespace sinew::offline {
@@ -118,7 +118,8 @@ struct RegisteredShape {
   io::SurfaceMesh surface;  ///< the deformed output surface (PreparedCase::surface_triangles)
   TetMesh mesh;             ///< the deformed tet mesh
   TetMesh rest_mesh;        ///< the template tet mesh
-  /// Where the markers hold the surface (offline/marker_coverage.hpp), in the normalised frame.
+  /// Where the markers hold the surface (offline/registration/marker_coverage.hpp), in the
+  /// normalised frame.
   MarkerCoverage coverage;
   /// Per tet: Fp row-major (#T by 9), its eigenvalues ascending (#T by 3), their ratio largest /
   /// smallest (seed 003 Fig. 1 e) and det Fp.

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "offline/linalg/sparse_cholesky.hpp"
 #include "offline/meshing/tet_mesher.hpp"
-#include "offline/sparse_cholesky.hpp"
 
 namespace sinew::offline {
 

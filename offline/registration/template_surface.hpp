@@ -18,8 +18,8 @@
 #include <optional>
 #include <vector>
 
-#include "offline/gauss_newton.hpp"
 #include "offline/io/surface_mesh_io.hpp"
+#include "offline/registration/gauss_newton.hpp"
 #include "offline/registration/surface_distance.hpp"
 
 namespace sinew::offline {

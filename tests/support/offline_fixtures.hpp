@@ -10,10 +10,10 @@
 
 #include "common/fem/sparse_assembly.hpp"
 #include "common/material/stable_neo_hookean.hpp"
-#include "offline/constraints.hpp"
+#include "offline/constraints/constraints.hpp"
 #include "offline/io/tet_mesh_io.hpp"
-#include "offline/plastic_elastic_energy.hpp"
-#include "offline/plastic_strain.hpp"
+#include "offline/plastic/plastic_elastic_energy.hpp"
+#include "offline/plastic/plastic_strain.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
 
 namespace sinew::testing {

@@ -27,8 +27,8 @@
 #include <vector>
 
 #include "offline/io/surface_mesh_io.hpp"
+#include "offline/meshing/surface_closest_point.hpp"
 #include "offline/registration/surface_distance.hpp"
-#include "offline/surface_closest_point.hpp"
 #include "tests/support/run_tool.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
 #include "tools/register/demo_case.hpp"

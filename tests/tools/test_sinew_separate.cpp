@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "offline/constraints.hpp"
+#include "offline/constraints/constraints.hpp"
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/io/tet_mesh_io.hpp"
 #include "tests/support/offline_fixtures.hpp"

@@ -33,7 +33,7 @@
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/io/volume_image_io.hpp"
 #include "offline/meshing/label_image.hpp"
-#include "offline/surface_closest_point.hpp"
+#include "offline/meshing/surface_closest_point.hpp"
 #include "tools/label/slice_pictures.hpp"
 
 namespace {

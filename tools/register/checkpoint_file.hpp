@@ -13,7 +13,7 @@
 #include <optional>
 #include <string>
 
-#include "offline/gauss_newton.hpp"
+#include "offline/registration/gauss_newton.hpp"
 #include "offline/registration/register_case.hpp"
 
 namespace sinew::tools {

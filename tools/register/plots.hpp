@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "offline/gauss_newton.hpp"
+#include "offline/registration/gauss_newton.hpp"
 
 namespace sinew::tools {
 

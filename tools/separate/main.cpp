@@ -1,5 +1,5 @@
 // sinew-separate: removes the inter-penetration of two registered neighbouring organs (seed 003
-// §4.1.4, offline/interpenetration.hpp) and writes
+// §4.1.4, offline/separation/interpenetration.hpp) and writes
 //   OUTDIR/a_separated.vtu, b_separated.vtu  the two tet meshes after separation, with per-tet
 //                                            "displacement" (largest displacement of its four
 //                                            vertices, mesh units) as cell data (ParaView)
@@ -26,10 +26,10 @@
 #include <string>
 #include <vector>
 
-#include "offline/interpenetration.hpp"
 #include "offline/io/surface_mesh_io.hpp"
 #include "offline/io/tet_mesh_io.hpp"
-#include "offline/surface_closest_point.hpp"
+#include "offline/meshing/surface_closest_point.hpp"
+#include "offline/separation/interpenetration.hpp"
 #include "tools/io/json_file.hpp"
 
 namespace {

@@ -8,8 +8,8 @@
 #include <limits>
 #include <random>
 
+#include "offline/meshing/surface_closest_point.hpp"
 #include "offline/registration/surface_distance.hpp"
-#include "offline/surface_closest_point.hpp"
 #include "tools/register/demo_case.hpp"
 
 namespace {
