@@ -549,10 +549,19 @@ class BinaryReader {
   bool big_endian_;
 };
 
-RawSurface read_ply(const std::string& path, std::string_view bytes) {
-  // Header: text lines up to "end_header".
+// A PLY header: its elements with their properties, the format, and where the body starts.
+struct PlyHeader {
   std::vector<PlyElement> elements;
   PlyFormat format = PlyFormat::ascii;
+  std::size_t body = 0;  // byte offset of the first byte after "end_header"
+  int lines = 0;         // header lines
+};
+
+PlyHeader read_ply_header(const std::string& path, std::string_view bytes) {
+  // Header: text lines up to "end_header".
+  PlyHeader header;
+  std::vector<PlyElement>& elements = header.elements;
+  PlyFormat& format = header.format;
   bool have_format = false;
   std::size_t pos = 0;
   int line_number = 0;
@@ -628,11 +637,27 @@ RawSurface read_ply(const std::string& path, std::string_view bytes) {
   if (!ended) fail_line(path, std::max(line_number, 1), "file ends before 'end_header'");
   if (!have_format) fail_line(path, line_number, "no 'format' line in the header");
 
-  // Where x, y, z and the corner list are.
+  header.body = pos;
+  header.lines = line_number;
+  return header;
+}
+
+// Where a PLY file's x, y, z and corner lists are.
+struct PlyLayout {
   const PlyElement* vertex_element = nullptr;
   const PlyElement* face_element = nullptr;
   std::array<int, 3> xyz_property{-1, -1, -1};
   int list_property = -1;
+};
+
+PlyLayout ply_layout(const std::string& path, const PlyHeader& header) {
+  PlyLayout layout;
+  const PlyElement*& vertex_element = layout.vertex_element;
+  const PlyElement*& face_element = layout.face_element;
+  std::array<int, 3>& xyz_property = layout.xyz_property;
+  int& list_property = layout.list_property;
+  const std::vector<PlyElement>& elements = header.elements;
+  const int line_number = header.lines;
   for (const auto& e : elements) {
     if (e.name == "vertex") {
       vertex_element = &e;
@@ -671,94 +696,116 @@ RawSurface read_ply(const std::string& path, std::string_view bytes) {
               "no 'element face' in the header (triangle strips and point "
               "clouds are not supported)");
 
+  return layout;
+}
+
+void check_ply_face_count(long long n, const std::string& at) {
+  if (n < 3) fail(at + "has " + std::to_string(n) + " corners, at least 3 needed");
+}
+
+// Property k of element e, value v: a vertex coordinate when it is x, y or z of the vertices.
+void set_coordinate(const PlyLayout& layout, const PlyElement& e, std::size_t k, double v,
+                    std::array<double, 3>& x) {
+  if (&e != layout.vertex_element) return;
+  for (int a = 0; a < 3; ++a) {
+    if (layout.xyz_property[static_cast<std::size_t>(a)] == static_cast<int>(k))
+      x[static_cast<std::size_t>(a)] = v;
+  }
+}
+
+void read_ply_ascii_body(const std::string& path, std::string_view bytes, const PlyHeader& header,
+                         const PlyLayout& layout, RawSurface& raw) {
+  const std::size_t pos = header.body;
+  const int line_number = header.lines;
+  std::array<double, 3> x{};
+  TokenStream src(path, bytes.substr(pos), line_number + 1, false);
+  for (const auto& e : header.elements) {
+    for (long long i = 0; i < e.count; ++i) {
+      const std::string what =
+          "element " + e.name + " " + std::to_string(i) + " of " + std::to_string(e.count);
+      const int line = src.at_end() ? src.last_line() : src.peek().line;
+      const auto at = [&] { return path + ":" + std::to_string(line) + ": " + e.name + " "; };
+      for (std::size_t k = 0; k < e.properties.size(); ++k) {
+        const auto& p = e.properties[k];
+        if (!p.is_list) {
+          const double v = ply_is_float(p.type)
+                               ? src.real(p.name + " of " + what)
+                               : static_cast<double>(src.integer(p.name + " of " + what));
+          set_coordinate(layout, e, k, v, x);
+          continue;
+        }
+        const long long n = src.integer("the list count of " + p.name + " of " + what);
+        if (n < 0) fail_line(path, line, "negative list count " + std::to_string(n));
+        const bool corners =
+            &e == layout.face_element && static_cast<int>(k) == layout.list_property;
+        if (corners) check_ply_face_count(n, at());
+        for (long long c = 0; c < n; ++c) {
+          if (ply_is_float(p.type)) {
+            src.real(p.name + " of " + what);
+          } else {
+            const long long v = src.integer(p.name + " of " + what);
+            if (corners) raw.corners.push_back(v);
+          }
+        }
+      }
+      if (&e == layout.vertex_element) add_vertex(raw, x[0], x[1], x[2], at);
+      if (&e == layout.face_element) raw.end_face(line);
+    }
+  }
+  if (!src.at_end())
+    fail_line(path, src.peek().line,
+              "unexpected " + quote_token(src.peek().text) + " after the last element");
+}
+
+void read_ply_binary_body(const std::string& path, std::string_view bytes, const PlyHeader& header,
+                          const PlyLayout& layout, RawSurface& raw) {
+  const std::size_t pos = header.body;
+  const PlyFormat format = header.format;
+  std::array<double, 3> x{};
+  BinaryReader src(path, bytes, pos, format == PlyFormat::binary_be);
+  for (const auto& e : header.elements) {
+    for (long long i = 0; i < e.count; ++i) {
+      const std::size_t start = src.pos();
+      const std::string what = e.name + " " + std::to_string(i);
+      const auto at = [&] { return path + ": byte " + std::to_string(start) + ": " + what + " "; };
+      for (std::size_t k = 0; k < e.properties.size(); ++k) {
+        const auto& p = e.properties[k];
+        if (!p.is_list) {
+          const double v = src.read(p.type, what);
+          set_coordinate(layout, e, k, v, x);
+          continue;
+        }
+        const double count = src.read(p.count_type, what);
+        if (count < 0) fail(at() + "has a negative list count " + number(count));
+        const auto n = static_cast<long long>(count);
+        const bool corners =
+            &e == layout.face_element && static_cast<int>(k) == layout.list_property;
+        if (corners) check_ply_face_count(n, at());
+        for (long long c = 0; c < n; ++c) {
+          const double v = src.read(p.type, what);
+          if (corners) raw.corners.push_back(static_cast<long long>(v));
+        }
+      }
+      if (&e == layout.vertex_element) add_vertex(raw, x[0], x[1], x[2], at);
+      if (&e == layout.face_element) raw.end_face(static_cast<long long>(start));
+    }
+  }
+  if (src.pos() != bytes.size())
+    fail(path + ": byte " + std::to_string(src.pos()) + ": " +
+         std::to_string(bytes.size() - src.pos()) + " unexpected bytes after the last element");
+}
+
+RawSurface read_ply(const std::string& path, std::string_view bytes) {
+  const PlyHeader header = read_ply_header(path, bytes);
+  const PlyLayout layout = ply_layout(path, header);
   RawSurface raw;
   raw.file = path;
-  raw.binary = format != PlyFormat::ascii;
-  reserve(raw, vertex_element->count, face_element->count);
-  std::array<double, 3> x{};
-  const auto check_face_count = [&](long long n, const std::string& at) {
-    if (n < 3) fail(at + "has " + std::to_string(n) + " corners, at least 3 needed");
-  };
-  if (format == PlyFormat::ascii) {
-    TokenStream src(path, bytes.substr(pos), line_number + 1, false);
-    for (const auto& e : elements) {
-      for (long long i = 0; i < e.count; ++i) {
-        const std::string what =
-            "element " + e.name + " " + std::to_string(i) + " of " + std::to_string(e.count);
-        const int line = src.at_end() ? src.last_line() : src.peek().line;
-        const auto at = [&] { return path + ":" + std::to_string(line) + ": " + e.name + " "; };
-        for (std::size_t k = 0; k < e.properties.size(); ++k) {
-          const auto& p = e.properties[k];
-          if (!p.is_list) {
-            const double v = ply_is_float(p.type)
-                                 ? src.real(p.name + " of " + what)
-                                 : static_cast<double>(src.integer(p.name + " of " + what));
-            if (&e == vertex_element) {
-              for (int a = 0; a < 3; ++a) {
-                if (xyz_property[static_cast<std::size_t>(a)] == static_cast<int>(k))
-                  x[static_cast<std::size_t>(a)] = v;
-              }
-            }
-            continue;
-          }
-          const long long n = src.integer("the list count of " + p.name + " of " + what);
-          if (n < 0) fail_line(path, line, "negative list count " + std::to_string(n));
-          const bool corners = &e == face_element && static_cast<int>(k) == list_property;
-          if (corners) check_face_count(n, at());
-          for (long long c = 0; c < n; ++c) {
-            if (ply_is_float(p.type)) {
-              src.real(p.name + " of " + what);
-            } else {
-              const long long v = src.integer(p.name + " of " + what);
-              if (corners) raw.corners.push_back(v);
-            }
-          }
-        }
-        if (&e == vertex_element) add_vertex(raw, x[0], x[1], x[2], at);
-        if (&e == face_element) raw.end_face(line);
-      }
-    }
-    if (!src.at_end())
-      fail_line(path, src.peek().line,
-                "unexpected " + quote_token(src.peek().text) + " after the last element");
+  raw.binary = header.format != PlyFormat::ascii;
+  reserve(raw, layout.vertex_element->count, layout.face_element->count);
+  if (header.format == PlyFormat::ascii) {
+    read_ply_ascii_body(path, bytes, header, layout, raw);
   } else {
-    BinaryReader src(path, bytes, pos, format == PlyFormat::binary_be);
-    for (const auto& e : elements) {
-      for (long long i = 0; i < e.count; ++i) {
-        const std::size_t start = src.pos();
-        const std::string what = e.name + " " + std::to_string(i);
-        const auto at = [&] {
-          return path + ": byte " + std::to_string(start) + ": " + what + " ";
-        };
-        for (std::size_t k = 0; k < e.properties.size(); ++k) {
-          const auto& p = e.properties[k];
-          if (!p.is_list) {
-            const double v = src.read(p.type, what);
-            if (&e == vertex_element) {
-              for (int a = 0; a < 3; ++a) {
-                if (xyz_property[static_cast<std::size_t>(a)] == static_cast<int>(k))
-                  x[static_cast<std::size_t>(a)] = v;
-              }
-            }
-            continue;
-          }
-          const double count = src.read(p.count_type, what);
-          if (count < 0) fail(at() + "has a negative list count " + number(count));
-          const auto n = static_cast<long long>(count);
-          const bool corners = &e == face_element && static_cast<int>(k) == list_property;
-          if (corners) check_face_count(n, at());
-          for (long long c = 0; c < n; ++c) {
-            const double v = src.read(p.type, what);
-            if (corners) raw.corners.push_back(static_cast<long long>(v));
-          }
-        }
-        if (&e == vertex_element) add_vertex(raw, x[0], x[1], x[2], at);
-        if (&e == face_element) raw.end_face(static_cast<long long>(start));
-      }
-    }
-    if (src.pos() != bytes.size())
-      fail(path + ": byte " + std::to_string(src.pos()) + ": " +
-           std::to_string(bytes.size() - src.pos()) + " unexpected bytes after the last element");
+    read_ply_binary_body(path, bytes, header, layout, raw);
   }
   return raw;
 }

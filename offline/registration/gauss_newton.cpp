@@ -721,6 +721,469 @@ BrentResult brent_minimise(const std::function<double(double)>& f, double a, dou
 
 namespace {
 
+// The inputs run_registration cannot use, as its message; std::nullopt when all are usable.
+std::optional<std::string> invalid_registration_input(const PlasticElasticEnergy& energy_in,
+                                                      const RegistrationConstraints& constraints,
+                                                      const ClosestSurfacePoint* closest_point,
+                                                      const GaussNewtonOptions& options,
+                                                      const GaussNewtonCheckpoint* resume,
+                                                      bool free) {
+  if (auto message = options.validate()) {
+    return "GaussNewtonOptions: " + *message;
+  }
+  if (!free && constraints.attachments.empty()) {
+    return "no attachments: an attached object needs attachments (use register_free for "
+           "un-attached objects)";
+  }
+  if (free && !constraints.attachments.empty()) {
+    return "attachments given to register_free: use register_attached";
+  }
+  if (free && constraints.landmarks.size() < 3 && constraints.icp_markers.size() < 3) {
+    return "a free object needs at least 3 landmarks or 3 ICP markers to fix its rigid "
+           "motion (eqs. 19-20)";
+  }
+  if (!constraints.icp_markers.empty() && closest_point == nullptr) {
+    return "ICP markers given without a closest-point "
+           "structure";
+  }
+  if (resume != nullptr) {
+    if (resume->free_object != free) {
+      return std::string("checkpoint: written by ") +
+             (resume->free_object ? "register_free" : "register_attached") + ", resumed by " +
+             (free ? "register_free" : "register_attached");
+    }
+    if (resume->s.size() != 6 * energy_in.num_tets() ||
+        resume->x.size() != 3 * energy_in.num_vertices()) {
+      return "checkpoint: s has " + std::to_string(resume->s.size()) + " and x " +
+             std::to_string(resume->x.size()) + " entries, the mesh needs " +
+             std::to_string(6 * energy_in.num_tets()) + " and " +
+             std::to_string(3 * energy_in.num_vertices());
+    }
+    if (!resume->s.allFinite() || !resume->x.allFinite() || resume->next_iteration < 1) {
+      return "checkpoint: non-finite state or next_iteration < 1";
+    }
+  }
+  return std::nullopt;
+}
+
+// The stages a registration runs, in order (§4): the attachments (an attached object), the
+// landmarks (unless they join the ICP stage), the ICP markers.
+std::vector<RegistrationStage> registration_stages(const RegistrationConstraints& constraints,
+                                                   const GaussNewtonOptions& options, bool free) {
+  std::vector<RegistrationStage> stages;
+  if (!free) stages.push_back(RegistrationStage::kAttachments);
+  if (!constraints.landmarks.empty() &&
+      (options.landmark_stage || constraints.icp_markers.empty() || !options.icp_stage_landmarks))
+    stages.push_back(RegistrationStage::kLandmarks);
+  if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
+  return stages;
+}
+
+// A checkpoint's state taken up: where to go on (the stage index, stages.size() when all are done,
+// and its iteration), the state and the iterations so far. False (error set) when the checkpoint
+// names a stage this registration does not run.
+bool resume_state(const GaussNewtonCheckpoint& resume, const std::vector<RegistrationStage>& stages,
+                  Registration& r, GaussNewtonSummary& summary, std::size_t* first_stage,
+                  int* first_iteration, std::string* error) {
+  *first_stage = stages.size();
+  if (resume.next_stage) {
+    const auto at = std::find(stages.begin(), stages.end(), *resume.next_stage);
+    if (at == stages.end()) {
+      *error = std::string("checkpoint: stage '") + to_string(*resume.next_stage) +
+               "' is not a stage of this registration";
+      return false;
+    }
+    *first_stage = static_cast<std::size_t>(at - stages.begin());
+    *first_iteration = resume.next_iteration;
+  }
+  r.s = resume.s;
+  r.x = resume.x;
+  r.equilibrium_solves = resume.equilibrium_solves;
+  summary.iterations = resume.iterations;
+  summary.initial_objective = resume.initial_objective;
+  return true;
+}
+
+// §3.6: a free object starts from a rigid alignment of the template to the scan (landmark
+// correspondences, or centroids and ICP), so that any pose of the scan frame works.
+void align_free_object(Registration& r, const PlasticElasticEnergy& energy_in,
+                       const RegistrationConstraints& constraints) {
+  if (constraints.landmarks.size() >= 3) {
+    std::vector<Eigen::Vector3d> from, to;
+    for (const PointConstraint& c : constraints.landmarks) {
+      from.push_back(embedded_position(energy_in.tets(), c.point, r.x));
+      to.push_back(c.target);
+    }
+    if (const auto fit = fit_rigid_transform(from, to)) fit->apply_to_dofs(r.x);
+  } else {
+    Eigen::Vector3d markers = Eigen::Vector3d::Zero(), vertices = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& z : constraints.icp_markers) markers += z;
+    markers /= static_cast<double>(constraints.icp_markers.size());
+    for (Eigen::Index v = 0; v < r.x.size() / 3; ++v) vertices += r.x.segment<3>(3 * v);
+    vertices /= static_cast<double>(r.x.size() / 3);
+    RigidTransform{Eigen::Matrix3d::Identity(), markers - vertices}.apply_to_dofs(r.x);
+    r.rigid_update(RegistrationStage::kIcpMarkers, r.x, 50);
+  }
+}
+
+// The springs pull the template to the attachment targets first. When the targets are far (a
+// twisted bar, a bone in another pose) the direct solve may fail: then it is retried allowing
+// inverted tets on the way, directly and, failing that, with the targets moved from where the
+// template has its attachment points to where they belong in first_equilibrium_steps equal steps.
+// Whether an equilibrium was reached.
+bool first_attached_equilibrium(Registration& r, PointConstraints& springs_ref,
+                                EquilibriumSolver& first_solver,
+                                const PlasticElasticEnergy& energy_in,
+                                const RegistrationConstraints& constraints,
+                                const GaussNewtonOptions& options) {
+  PointConstraints* springs = &springs_ref;
+  EquilibriumSolver* first_equilibrium = &first_solver;
+  const Eigen::VectorXd s0 = r.s;
+  r.x = energy_in.rest_dofs();
+  ++r.equilibrium_solves;
+  bool reached = first_equilibrium->solve(s0, r.x).converged();
+  const auto& list = constraints.attachments;
+  for (int step_index = 1; !reached && step_index <= options.first_equilibrium_steps;
+       ++step_index) {
+    if (step_index == 1) r.x = energy_in.rest_dofs();
+    const double t = static_cast<double>(step_index) / options.first_equilibrium_steps;
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const Eigen::Vector3d start =
+          embedded_position(energy_in.tets(), list[i].point, energy_in.rest_dofs());
+      // The last step sets the targets exactly (start + 1·(target − start) may differ from
+      // target in the last bit), so that the springs hold no trace of the continuation and a
+      // resumed run, which skips it, solves the same equilibria.
+      springs->set_target(static_cast<Eigen::Index>(i),
+                          step_index == options.first_equilibrium_steps
+                              ? list[i].target
+                              : Eigen::Vector3d(start + t * (list[i].target - start)));
+    }
+    ++r.equilibrium_solves;
+    const bool step_reached = first_equilibrium->solve(s0, r.x).converged();
+    if (!step_reached) break;
+    reached = step_index == options.first_equilibrium_steps;
+  }
+  return reached;
+}
+
+// §3.4 "Initial guess": one constant s for all tets (NLopt BOBYQA over its 6 entries), recorded
+// as the run's first iteration. False (error set) when the objective cannot be formed.
+bool initial_constant_fit(Registration& r, bool free, RegistrationStage final_stage,
+                          const GaussNewtonOptions& options, GaussNewtonSummary& summary,
+                          const GaussNewtonProgress& progress, std::string& error) {
+  const Clock::time_point start = Clock::now();
+  const int solves_before = r.equilibrium_solves;
+  ConstantFitData fit{&r,        RegistrationStage::kInitialFit, r.x,
+                      kInfinity, identity_plastic_strain(),      0};
+  if (free) {
+    auto terms = r.objective_constraints(RegistrationStage::kInitialFit, r.x, &error);
+    if (!terms || !r.set_stabilisation(*terms, r.x, &error)) {
+      return false;
+    }
+  }
+  std::vector<double> a(6);
+  for (int i = 0; i < 6; ++i) a[static_cast<std::size_t>(i)] = identity_plastic_strain()[i];
+  const double start_value = constant_fit_objective(6, a.data(), nullptr, &fit);
+  nlopt::opt optimiser(nlopt::LN_BOBYQA, 6);
+  std::vector<double> lower(6), upper(6);
+  for (int i = 0; i < 6; ++i) {
+    const bool diagonal = !is_off_diagonal_component(i);
+    lower[static_cast<std::size_t>(i)] = diagonal ? 0.05 : -5.0;
+    upper[static_cast<std::size_t>(i)] = diagonal ? 20.0 : 5.0;
+  }
+  optimiser.set_lower_bounds(lower);
+  optimiser.set_upper_bounds(upper);
+  optimiser.set_min_objective(constant_fit_objective, &fit);
+  optimiser.set_maxeval(options.initial_fit_evaluations);
+  optimiser.set_ftol_rel(1e-5);
+  optimiser.set_initial_step(0.05);
+  double value = 0.0;
+  try {
+    optimiser.optimize(a, value);
+  } catch (const std::exception&) {
+    // NLopt reports round-off limits and forced stops by exceptions; the best point is kept.
+  }
+  GaussNewtonIteration record;
+  record.stage = RegistrationStage::kInitialFit;
+  record.iteration = 1;
+  record.objective_before = start_value;
+  record.objective = start_value;
+  if (fit.best_value < start_value) {
+    for (Eigen::Index t = 0; t < r.energy().num_tets(); ++t) r.s.segment<6>(6 * t) = fit.best_a;
+    r.x = fit.best_x;
+    record.objective = fit.best_value;
+    record.step = 1.0;
+  }
+  std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(final_stage, r.x);
+  record.equilibrium_solves = r.equilibrium_solves - solves_before;
+  record.seconds = seconds_since(start);
+  summary.iterations.push_back(record);
+  if (progress) progress(record);
+  return true;
+}
+
+// The line search of one Gauss–Newton iteration (§3.4): Φ at the static equilibrium of s + η·step
+// (or, projected, of clamp(s + η·direction)), keeping the best state of every evaluation.
+struct LineSearch {
+  LineSearch(Registration& registration, const GaussNewtonOptions& run_options,
+             const PointConstraints& objective_terms, Eigen::VectorXd& gauss_newton_step,
+             double before)
+      : r(registration),
+        options(run_options),
+        terms(objective_terms),
+        step(gauss_newton_step),
+        best_s(registration.s),
+        best_value(before),
+        best_x(registration.x) {}
+
+  void state_at(double eta, Eigen::VectorXd& s_eta) const {
+    if (!projected) {
+      s_eta = r.s + eta * step;
+      return;
+    }
+    s_eta = r.s + eta * direction;
+    clamp_plastic_state_eigenvalues(s_eta, options.eigenvalue_floor);
+  }
+
+  double phi(double eta) {
+    Eigen::VectorXd s_trial;
+    state_at(eta, s_trial);
+    Eigen::VectorXd x_trial = r.x;
+    // Warm start at the linear prediction of the equilibrium (predictor_warm_start); from x
+    // itself when there is none or it fails.
+    bool solved = false;
+    if (!projected && trial_dx.size() == x_trial.size()) {
+      x_trial.noalias() += eta * trial_dx;
+      // The prediction may invert tets, which the solver then need not undo (it only keeps
+      // tets that start uninverted so): an equilibrium with an inverted tet is solved again
+      // from x. Starting from x alone instead stalled sub-verse023 (34 s per iteration).
+      solved = r.solve_equilibrium(s_trial, x_trial) && r.inverts_no_tet(x_trial);
+      if (!solved) x_trial = r.x;
+    }
+    // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0.
+    if (!solved && !r.solve_equilibrium(s_trial, x_trial)) return 1e300 * (1.0 + eta);
+    const double value = r.objective(s_trial, x_trial, terms);
+    if (value < best_value) {
+      best_value = value;
+      best_eta = eta;
+      best_x = x_trial;
+      best_s = s_trial;
+      best_projected = projected;
+    }
+    return value;
+  }
+
+  // Brent's search of [0, max_step] (§3.4).
+  void search() {
+    brent_minimise([this](double eta) { return phi(eta); }, 0.0, options.max_step,
+                   options.line_search_tolerance, options.line_search_evaluations - 1);
+  }
+
+  Registration& r;
+  const GaussNewtonOptions& options;
+  const PointConstraints& terms;
+  Eigen::VectorXd& step;
+  Eigen::VectorXd direction, best_s;
+  bool projected = false, best_projected = false;
+  double best_value;
+  double best_eta = 0.0;
+  Eigen::VectorXd best_x;
+  Eigen::VectorXd trial_dx;  // the equilibrium's predicted move for the trial's step
+};
+
+// The step of one iteration: the Gauss–Newton direction, with the tets whose eigenvalues it would
+// clamp held (hold_clamped_tets), its full step evaluated on the line search, and more damped
+// directions while the full step does not achieve full_step_acceptance of the model's decrease
+// (damped_step_trials). False (error set) when a linear solve fails; *full_step_good when a full
+// step is taken.
+bool damped_step_trials(LineSearch& ls, RegistrationStage stage, double before, bool ramping,
+                        double damping, GaussNewtonIteration& record, bool* full_step_good,
+                        Clock::time_point* search_start, std::string& error) {
+  Registration& r = ls.r;
+  const GaussNewtonOptions& options = ls.options;
+  Eigen::VectorXd& step = ls.step;
+  r.set_held_tets({});
+  for (int trial = 0;; ++trial) {
+    if (!r.direction(stage, ls.terms, damping, step, record, &error)) return false;
+    // §3.4: keep Fp positive definite (eigenvalues ≥ floor), then search along the result.
+    // When that search finds no decrease and tets were clamped, the projected path
+    // s(η) = clamp(s + η·d) is searched as well (GaussNewtonOptions::
+    // projected_search_fallback).
+    Eigen::VectorXd target = r.s + step;
+    record.clamped_tets = static_cast<int>(
+        clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+    if (record.clamped_tets > 0 && options.hold_clamped_tets && !ramping) {
+      // The clamped tets join the held ones (for this iteration's further trials too), and
+      // the step is solved again (GaussNewtonOptions::hold_clamped_tets).
+      std::vector<Eigen::Index> held = r.held_tets();
+      const Eigen::VectorXd unclamped = r.s + step;
+      for (Eigen::Index t = 0; t < r.energy().num_tets(); ++t) {
+        if (target.segment<6>(6 * t) != unclamped.segment<6>(6 * t) &&
+            std::find(held.begin(), held.end(), t) == held.end())
+          held.push_back(t);
+      }
+      r.set_held_tets(std::move(held));
+      if (!r.direction(stage, ls.terms, damping, step, record, &error)) return false;
+      target = r.s + step;
+      record.clamped_tets = static_cast<int>(
+          clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
+    }
+    record.damping = damping;
+    ls.trial_dx = r.predicted_dx();
+    ls.direction = step;
+    step = target - r.s;
+    *search_start = Clock::now();
+    // The full step first (Gauss–Newton's natural guess). It is taken as is when it achieved
+    // at least full_step_acceptance of the model's decrease (and no tet was clamped, which
+    // would change the step); otherwise a more damped direction is tried
+    // (damped_step_trials), and after the last one Brent searches [0, max_step] (§3.4).
+    const double full = ls.phi(std::min(1.0, options.max_step));
+    // With damped trials the test is on Φ at the clamped state itself (a few tets at the
+    // floor need not spoil a step that achieves the model's decrease); without, as before.
+    *full_step_good = (record.clamped_tets == 0 || options.damped_step_trials > 0) &&
+                      options.full_step_acceptance > 0.0 && record.predicted_decrease > 0.0 &&
+                      before - full >= options.full_step_acceptance * record.predicted_decrease;
+    // The best state of all trials is taken (phi keeps it), usually this full step.
+    if (*full_step_good) return true;
+    if (trial >= options.damped_step_trials) return true;
+    damping = damping == 0.0 ? options.damping_start : damping * options.damping_growth;
+  }
+}
+
+// Whether a stage ends after an iteration that took a step (the last of summary.iterations), and
+// why (termination). The stopping tests wait while the ICP stage ramps its weights up.
+bool stage_converged(RegistrationStage stage, RegistrationStage final_stage, double before,
+                     bool ramping, const GaussNewtonOptions& options,
+                     const GaussNewtonSummary& summary, GaussNewtonTermination& termination) {
+  const GaussNewtonIteration& record = summary.iterations.back();
+  if (ramping) return false;
+  if ((stage == RegistrationStage::kIcpMarkers ||
+       (stage == RegistrationStage::kLandmarks && stage != final_stage)) &&
+      options.max_marker_error > 0.0 && record.marker_error_max <= options.max_marker_error) {
+    // The ICP stage's markers met; or the landmarks met in a landmark stage that only
+    // prepares the ICP stage (its further iterations polish the smoothness the ICP stage
+    // changes anyway: 10-20 iterations of relative decreases ~1e-5 on the vertebrae).
+    termination = GaussNewtonTermination::kMarkerTolerance;
+    return true;
+  }
+  if (record.step < options.min_step) {
+    termination = GaussNewtonTermination::kSmallStep;
+    return true;
+  }
+  if (before - record.objective <= options.relative_decrease_tolerance * before) {
+    termination = GaussNewtonTermination::kSmallDecrease;
+    return true;
+  }
+  if (stage == RegistrationStage::kIcpMarkers && options.icp_no_progress_iterations > 0) {
+    // Φ after each iteration at the full weights (icp_no_progress_iterations): iterations
+    // since the last one that lowered the stage's best by relative_decrease_tolerance.
+    double best_after = kInfinity;
+    int since_best = 0;
+    for (const GaussNewtonIteration& it : summary.iterations) {
+      const bool it_ramping =
+          static_cast<std::size_t>(it.iteration) <= options.icp_weight_ramp.size() ||
+          it.iteration <= options.icp_point_to_plane_iterations;
+      if (it.stage != stage || it_ramping || !(it.step > 0.0)) continue;
+      if (it.objective < (1.0 - options.relative_decrease_tolerance) * best_after) {
+        best_after = it.objective;
+        since_best = 0;
+      } else {
+        ++since_best;
+      }
+    }
+    if (since_best >= options.icp_no_progress_iterations) {
+      termination = GaussNewtonTermination::kSmallDecrease;
+      return true;
+    }
+  }
+  return false;
+}
+
+// How an iteration ended: go on (its state is checkpointed), the stage is done (checkpointed
+// too), stop the stage at once (nothing to fit, a failed linear solve: termination says which),
+// or the objective could not be formed (error).
+enum class IterationEnd { kNext, kStageDone, kStop, kInvalidInput };
+
+// One Gauss–Newton iteration of a stage (§3.4-3.5): the weights of this iteration, the step
+// (damped_step_trials), the line search, the new state, its record and the stopping tests.
+IterationEnd gauss_newton_iteration(Registration& r, RegistrationStage stage, int iteration,
+                                    RegistrationStage final_stage, bool free,
+                                    const GaussNewtonOptions& options, GaussNewtonSummary& summary,
+                                    const GaussNewtonProgress& progress, Eigen::VectorXd& step,
+                                    GaussNewtonTermination& termination, std::string& error) {
+  const Clock::time_point start = Clock::now();
+  const int solves_before = r.equilibrium_solves;
+  GaussNewtonIteration record;
+  record.stage = stage;
+  record.iteration = iteration;
+  // A function of the iteration alone, so that a resumed run weighs exactly as the first.
+  const bool weight_ramp = stage == RegistrationStage::kIcpMarkers &&
+                           static_cast<std::size_t>(iteration) <= options.icp_weight_ramp.size();
+  const bool plane_phase =
+      stage == RegistrationStage::kIcpMarkers && iteration <= options.icp_point_to_plane_iterations;
+  const bool ramping = weight_ramp || plane_phase;  // the stopping tests wait for both
+  r.set_icp_weight_scale(
+      weight_ramp ? options.icp_weight_ramp[static_cast<std::size_t>(iteration - 1)] : 1.0);
+  r.set_icp_point_to_plane(plane_phase);
+  auto terms = r.objective_constraints(stage, r.x, &error);
+  if (!terms) return IterationEnd::kInvalidInput;
+  const double before = r.objective(r.s, r.x, *terms);
+  record.objective_before = before;
+  // Nothing (left) to fit in this stage, e.g. attachments already met: Φ is round-off.
+  if (before <= 1e-12 * summary.initial_objective) {
+    termination = GaussNewtonTermination::kSmallDecrease;
+    return IterationEnd::kStop;
+  }
+  if (r.free_object() && !r.set_stabilisation(*terms, r.x, &error)) {
+    termination = GaussNewtonTermination::kLinearSolveFailed;
+    summary.message = error;
+    return IterationEnd::kStop;
+  }
+  // The damping to start from: the last iteration's, relaxed (damped_step_trials).
+  double damping = 0.0;
+  if (options.damped_step_trials > 0 && !summary.iterations.empty()) {
+    damping = summary.iterations.back().damping / options.damping_growth;
+    if (damping < options.damping_start) damping = 0.0;
+  }
+  LineSearch ls(r, options, *terms, step, before);
+  bool full_step_good = false;
+  Clock::time_point search_start = Clock::now();
+  if (!damped_step_trials(ls, stage, before, ramping, damping, record, &full_step_good,
+                          &search_start, error)) {
+    termination = GaussNewtonTermination::kLinearSolveFailed;
+    summary.message = error;
+    return IterationEnd::kStop;
+  }
+  if (!full_step_good) ls.search();
+  if (ls.best_eta <= 0.0 && record.clamped_tets > 0 && options.projected_search_fallback) {
+    ls.projected = true;  // its full step is clamp(s + d), already tried
+    record.projected_search = true;
+    ls.search();
+  }
+  record.line_search_seconds = seconds_since(search_start);
+  record.equilibrium_solves = r.equilibrium_solves - solves_before;
+  const bool took_step = ls.best_eta > 0.0;
+  if (!took_step) {
+    record.objective = before;
+    termination = GaussNewtonTermination::kLineSearchFailed;
+  } else {
+    ls.projected = ls.best_projected;
+    r.s = ls.best_s;
+    r.x = ls.best_x;
+    if (free) r.rigid_update(stage, r.x, rigid_rounds(stage));
+    record.step = ls.best_eta;
+    record.objective = ls.best_value;
+  }
+  std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
+  record.seconds = seconds_since(start);
+  summary.iterations.push_back(record);
+  if (progress) progress(record);
+  const bool stage_done = took_step ? stage_converged(stage, final_stage, before, ramping, options,
+                                                      summary, termination)
+                                    : !ramping;
+  return stage_done ? IterationEnd::kStageDone : IterationEnd::kNext;
+}
+
 RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
                                     const RegistrationConstraints& constraints,
                                     ClosestSurfacePoint* closest_point,
@@ -739,47 +1202,9 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     summary.seconds = seconds_since(run_start);
     return result;
   };
-  if (auto message = options.validate()) {
-    return fail(GaussNewtonTermination::kInvalidInput, "GaussNewtonOptions: " + *message);
-  }
-  if (!free && constraints.attachments.empty()) {
-    return fail(GaussNewtonTermination::kInvalidInput,
-                "no attachments: an attached object needs attachments (use register_free for "
-                "un-attached objects)");
-  }
-  if (free && !constraints.attachments.empty()) {
-    return fail(GaussNewtonTermination::kInvalidInput,
-                "attachments given to register_free: use register_attached");
-  }
-  if (free && constraints.landmarks.size() < 3 && constraints.icp_markers.size() < 3) {
-    return fail(GaussNewtonTermination::kInvalidInput,
-                "a free object needs at least 3 landmarks or 3 ICP markers to fix its rigid "
-                "motion (eqs. 19-20)");
-  }
-  if (!constraints.icp_markers.empty() && closest_point == nullptr) {
-    return fail(GaussNewtonTermination::kInvalidInput,
-                "ICP markers given without a closest-point "
-                "structure");
-  }
-  if (resume != nullptr) {
-    if (resume->free_object != free) {
-      return fail(GaussNewtonTermination::kInvalidInput,
-                  std::string("checkpoint: written by ") +
-                      (resume->free_object ? "register_free" : "register_attached") +
-                      ", resumed by " + (free ? "register_free" : "register_attached"));
-    }
-    if (resume->s.size() != 6 * energy_in.num_tets() ||
-        resume->x.size() != 3 * energy_in.num_vertices()) {
-      return fail(GaussNewtonTermination::kInvalidInput,
-                  "checkpoint: s has " + std::to_string(resume->s.size()) + " and x " +
-                      std::to_string(resume->x.size()) + " entries, the mesh needs " +
-                      std::to_string(6 * energy_in.num_tets()) + " and " +
-                      std::to_string(3 * energy_in.num_vertices()));
-    }
-    if (!resume->s.allFinite() || !resume->x.allFinite() || resume->next_iteration < 1) {
-      return fail(GaussNewtonTermination::kInvalidInput,
-                  "checkpoint: non-finite state or next_iteration < 1");
-    }
+  if (auto message = invalid_registration_input(energy_in, constraints, closest_point, options,
+                                                resume, free)) {
+    return fail(GaussNewtonTermination::kInvalidInput, *message);
   }
   // Exact stiffness in full storage for the Jacobian (eq. 10).
   PlasticElasticEnergyOptions exact_options;
@@ -814,34 +1239,16 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
                  laplacian.matrix, constraints, closest_point, options);
   r.s = result.s;
   r.x = result.x;
-  std::vector<RegistrationStage> stages;
-  if (!free) stages.push_back(RegistrationStage::kAttachments);
-  if (!constraints.landmarks.empty() &&
-      (options.landmark_stage || constraints.icp_markers.empty() || !options.icp_stage_landmarks))
-    stages.push_back(RegistrationStage::kLandmarks);
-  if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
+  const std::vector<RegistrationStage> stages = registration_stages(constraints, options, free);
   const RegistrationStage final_stage = stages.back();
   // The stage to start with (stages.size(): all done) and its first iteration.
   std::size_t first_stage = 0;
   int first_iteration = 1;
   double seconds_before = 0.0;  // a resumed run's earlier registration time
   if (resume != nullptr) {
-    first_stage = stages.size();
-    if (resume->next_stage) {
-      const auto at = std::find(stages.begin(), stages.end(), *resume->next_stage);
-      if (at == stages.end()) {
-        return fail(GaussNewtonTermination::kInvalidInput,
-                    std::string("checkpoint: stage '") + to_string(*resume->next_stage) +
-                        "' is not a stage of this registration");
-      }
-      first_stage = static_cast<std::size_t>(at - stages.begin());
-      first_iteration = resume->next_iteration;
+    if (!resume_state(*resume, stages, r, summary, &first_stage, &first_iteration, &error)) {
+      return fail(GaussNewtonTermination::kInvalidInput, error);
     }
-    r.s = resume->s;
-    r.x = resume->x;
-    r.equilibrium_solves = resume->equilibrium_solves;
-    summary.iterations = resume->iterations;
-    summary.initial_objective = resume->initial_objective;
     seconds_before = resume->seconds;
   }
   // Hands the state to continue from to the caller (checkpoints).
@@ -861,62 +1268,14 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     saved.seconds = seconds_before + seconds_since(run_start);
     checkpoint(saved);
   };
-  if (free && resume == nullptr) {
-    // §3.6: start from a rigid alignment of the template to the scan (landmark correspondences,
-    // or centroids and ICP), so that any pose of the scan frame works.
-    if (constraints.landmarks.size() >= 3) {
-      std::vector<Eigen::Vector3d> from, to;
-      for (const PointConstraint& c : constraints.landmarks) {
-        from.push_back(embedded_position(energy_in.tets(), c.point, r.x));
-        to.push_back(c.target);
-      }
-      if (const auto fit = fit_rigid_transform(from, to)) fit->apply_to_dofs(r.x);
-    } else {
-      Eigen::Vector3d markers = Eigen::Vector3d::Zero(), vertices = Eigen::Vector3d::Zero();
-      for (const Eigen::Vector3d& z : constraints.icp_markers) markers += z;
-      markers /= static_cast<double>(constraints.icp_markers.size());
-      for (Eigen::Index v = 0; v < r.x.size() / 3; ++v) vertices += r.x.segment<3>(3 * v);
-      vertices /= static_cast<double>(r.x.size() / 3);
-      RigidTransform{Eigen::Matrix3d::Identity(), markers - vertices}.apply_to_dofs(r.x);
-      r.rigid_update(RegistrationStage::kIcpMarkers, r.x, 50);
-    }
-  }
-  // The springs pull the template to the attachment targets first. When the targets are far (a
-  // twisted bar, a bone in another pose) the direct solve may fail: then it is retried allowing
-  // inverted tets on the way, directly and, failing that, with the targets moved from where the
-  // template has its attachment points to where they belong in first_equilibrium_steps equal steps.
-  if (resume == nullptr && !free && !r.solve_equilibrium(r.s, r.x)) {
-    const Eigen::VectorXd s0 = r.s;
-    r.x = energy_in.rest_dofs();
-    ++r.equilibrium_solves;
-    bool reached = first_equilibrium->solve(s0, r.x).converged();
-    const auto& list = constraints.attachments;
-    for (int step_index = 1; !reached && step_index <= options.first_equilibrium_steps;
-         ++step_index) {
-      if (step_index == 1) r.x = energy_in.rest_dofs();
-      const double t = static_cast<double>(step_index) / options.first_equilibrium_steps;
-      for (std::size_t i = 0; i < list.size(); ++i) {
-        const Eigen::Vector3d start =
-            embedded_position(energy_in.tets(), list[i].point, energy_in.rest_dofs());
-        // The last step sets the targets exactly (start + 1·(target − start) may differ from
-        // target in the last bit), so that the springs hold no trace of the continuation and a
-        // resumed run, which skips it, solves the same equilibria.
-        springs->set_target(static_cast<Eigen::Index>(i),
-                            step_index == options.first_equilibrium_steps
-                                ? list[i].target
-                                : Eigen::Vector3d(start + t * (list[i].target - start)));
-      }
-      ++r.equilibrium_solves;
-      const bool step_reached = first_equilibrium->solve(s0, r.x).converged();
-      if (!step_reached) break;
-      reached = step_index == options.first_equilibrium_steps;
-    }
-    if (!reached) {
-      return fail(GaussNewtonTermination::kEquilibriumFailed,
-                  "no static equilibrium of the template under the attachments (also not with "
-                  "inversions allowed, nor by " +
-                      std::to_string(options.first_equilibrium_steps) + " load steps)");
-    }
+  if (free && resume == nullptr) align_free_object(r, energy_in, constraints);
+  if (resume == nullptr && !free && !r.solve_equilibrium(r.s, r.x) &&
+      !first_attached_equilibrium(r, *springs, *first_equilibrium, energy_in, constraints,
+                                  options)) {
+    return fail(GaussNewtonTermination::kEquilibriumFailed,
+                "no static equilibrium of the template under the attachments (also not with "
+                "inversions allowed, nor by " +
+                    std::to_string(options.first_equilibrium_steps) + " load steps)");
   }
 
   if (resume == nullptr) {
@@ -925,56 +1284,10 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     summary.initial_objective = r.objective(r.s, r.x, *terms);
   }
 
-  // §3.4 "Initial guess": one constant s for all tets (NLopt BOBYQA over its 6 entries).
   if (options.initial_constant_fit && resume == nullptr) {
-    const Clock::time_point start = Clock::now();
-    const int solves_before = r.equilibrium_solves;
-    ConstantFitData fit{&r,        RegistrationStage::kInitialFit, r.x,
-                        kInfinity, identity_plastic_strain(),      0};
-    if (free) {
-      auto terms = r.objective_constraints(RegistrationStage::kInitialFit, r.x, &error);
-      if (!terms || !r.set_stabilisation(*terms, r.x, &error)) {
-        return fail(GaussNewtonTermination::kInvalidInput, error);
-      }
+    if (!initial_constant_fit(r, free, final_stage, options, summary, progress, error)) {
+      return fail(GaussNewtonTermination::kInvalidInput, error);
     }
-    std::vector<double> a(6);
-    for (int i = 0; i < 6; ++i) a[static_cast<std::size_t>(i)] = identity_plastic_strain()[i];
-    const double start_value = constant_fit_objective(6, a.data(), nullptr, &fit);
-    nlopt::opt optimiser(nlopt::LN_BOBYQA, 6);
-    std::vector<double> lower(6), upper(6);
-    for (int i = 0; i < 6; ++i) {
-      const bool diagonal = !is_off_diagonal_component(i);
-      lower[static_cast<std::size_t>(i)] = diagonal ? 0.05 : -5.0;
-      upper[static_cast<std::size_t>(i)] = diagonal ? 20.0 : 5.0;
-    }
-    optimiser.set_lower_bounds(lower);
-    optimiser.set_upper_bounds(upper);
-    optimiser.set_min_objective(constant_fit_objective, &fit);
-    optimiser.set_maxeval(options.initial_fit_evaluations);
-    optimiser.set_ftol_rel(1e-5);
-    optimiser.set_initial_step(0.05);
-    double value = 0.0;
-    try {
-      optimiser.optimize(a, value);
-    } catch (const std::exception&) {
-      // NLopt reports round-off limits and forced stops by exceptions; the best point is kept.
-    }
-    GaussNewtonIteration record;
-    record.stage = RegistrationStage::kInitialFit;
-    record.iteration = 1;
-    record.objective_before = start_value;
-    record.objective = start_value;
-    if (fit.best_value < start_value) {
-      for (Eigen::Index t = 0; t < r.energy().num_tets(); ++t) r.s.segment<6>(6 * t) = fit.best_a;
-      r.x = fit.best_x;
-      record.objective = fit.best_value;
-      record.step = 1.0;
-    }
-    std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(final_stage, r.x);
-    record.equilibrium_solves = r.equilibrium_solves - solves_before;
-    record.seconds = seconds_since(start);
-    summary.iterations.push_back(record);
-    if (progress) progress(record);
     save(stages.front(), 1, GaussNewtonTermination::kMaxIterations);
   }
 
@@ -987,215 +1300,14 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     termination = GaussNewtonTermination::kMaxIterations;
     for (int iteration = stage_index == first_stage ? first_iteration : 1;
          iteration <= options.max_iterations_per_stage; ++iteration) {
-      const Clock::time_point start = Clock::now();
-      const int solves_before = r.equilibrium_solves;
-      GaussNewtonIteration record;
-      record.stage = stage;
-      record.iteration = iteration;
-      // A function of the iteration alone, so that a resumed run weighs exactly as the first.
-      const bool weight_ramp =
-          stage == RegistrationStage::kIcpMarkers &&
-          static_cast<std::size_t>(iteration) <= options.icp_weight_ramp.size();
-      const bool plane_phase = stage == RegistrationStage::kIcpMarkers &&
-                               iteration <= options.icp_point_to_plane_iterations;
-      const bool ramping = weight_ramp || plane_phase;  // the stopping tests wait for both
-      r.set_icp_weight_scale(
-          weight_ramp ? options.icp_weight_ramp[static_cast<std::size_t>(iteration - 1)] : 1.0);
-      r.set_icp_point_to_plane(plane_phase);
-      auto terms = r.objective_constraints(stage, r.x, &error);
-      if (!terms) return fail(GaussNewtonTermination::kInvalidInput, error);
-      const double before = r.objective(r.s, r.x, *terms);
-      record.objective_before = before;
-      // Nothing (left) to fit in this stage, e.g. attachments already met: Φ is round-off.
-      if (before <= 1e-12 * summary.initial_objective) {
-        termination = GaussNewtonTermination::kSmallDecrease;
-        break;
+      const IterationEnd end =
+          gauss_newton_iteration(r, stage, iteration, final_stage, free, options, summary, progress,
+                                 step, termination, error);
+      if (end == IterationEnd::kInvalidInput) {
+        return fail(GaussNewtonTermination::kInvalidInput, error);
       }
-      if (r.free_object() && !r.set_stabilisation(*terms, r.x, &error)) {
-        termination = GaussNewtonTermination::kLinearSolveFailed;
-        summary.message = error;
-        break;
-      }
-      // The damping to start from: the last iteration's, relaxed (damped_step_trials).
-      double damping = 0.0;
-      if (options.damped_step_trials > 0 && !summary.iterations.empty()) {
-        damping = summary.iterations.back().damping / options.damping_growth;
-        if (damping < options.damping_start) damping = 0.0;
-      }
-      Eigen::VectorXd direction, best_s = r.s;
-      bool projected = false, best_projected = false;
-      const auto state_at = [&](double eta, Eigen::VectorXd& s_eta) {
-        if (!projected) {
-          s_eta = r.s + eta * step;
-          return;
-        }
-        s_eta = r.s + eta * direction;
-        clamp_plastic_state_eigenvalues(s_eta, options.eigenvalue_floor);
-      };
-      double best_value = before;
-      double best_eta = 0.0;
-      Eigen::VectorXd best_x = r.x;
-      Eigen::VectorXd trial_dx;  // the equilibrium's predicted move for the trial's step
-      auto phi = [&](double eta) {
-        Eigen::VectorXd s_trial;
-        state_at(eta, s_trial);
-        Eigen::VectorXd x_trial = r.x;
-        // Warm start at the linear prediction of the equilibrium (predictor_warm_start); from x
-        // itself when there is none or it fails.
-        bool solved = false;
-        if (!projected && trial_dx.size() == x_trial.size()) {
-          x_trial.noalias() += eta * trial_dx;
-          // The prediction may invert tets, which the solver then need not undo (it only keeps
-          // tets that start uninverted so): an equilibrium with an inverted tet is solved again
-          // from x. Starting from x alone instead stalled sub-verse023 (34 s per iteration).
-          solved = r.solve_equilibrium(s_trial, x_trial) && r.inverts_no_tet(x_trial);
-          if (!solved) x_trial = r.x;
-        }
-        // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0.
-        if (!solved && !r.solve_equilibrium(s_trial, x_trial)) return 1e300 * (1.0 + eta);
-        const double value = r.objective(s_trial, x_trial, *terms);
-        if (value < best_value) {
-          best_value = value;
-          best_eta = eta;
-          best_x = x_trial;
-          best_s = s_trial;
-          best_projected = projected;
-        }
-        return value;
-      };
-      bool full_step_good = false;
-      bool linear_failed = false;
-      Clock::time_point search_start = Clock::now();
-      r.set_held_tets({});
-      for (int trial = 0;; ++trial) {
-        if (!r.direction(stage, *terms, damping, step, record, &error)) {
-          linear_failed = true;
-          break;
-        }
-        // §3.4: keep Fp positive definite (eigenvalues ≥ floor), then search along the result.
-        // When that search finds no decrease and tets were clamped, the projected path
-        // s(η) = clamp(s + η·d) is searched as well (GaussNewtonOptions::
-        // projected_search_fallback).
-        Eigen::VectorXd target = r.s + step;
-        record.clamped_tets = static_cast<int>(
-            clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
-        if (record.clamped_tets > 0 && options.hold_clamped_tets && !ramping) {
-          // The clamped tets join the held ones (for this iteration's further trials too), and
-          // the step is solved again (GaussNewtonOptions::hold_clamped_tets).
-          std::vector<Eigen::Index> held = r.held_tets();
-          const Eigen::VectorXd unclamped = r.s + step;
-          for (Eigen::Index t = 0; t < r.energy().num_tets(); ++t) {
-            if (target.segment<6>(6 * t) != unclamped.segment<6>(6 * t) &&
-                std::find(held.begin(), held.end(), t) == held.end())
-              held.push_back(t);
-          }
-          r.set_held_tets(std::move(held));
-          if (!r.direction(stage, *terms, damping, step, record, &error)) {
-            linear_failed = true;
-            break;
-          }
-          target = r.s + step;
-          record.clamped_tets = static_cast<int>(
-              clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
-        }
-        record.damping = damping;
-        trial_dx = r.predicted_dx();
-        direction = step;
-        step = target - r.s;
-        search_start = Clock::now();
-        // The full step first (Gauss–Newton's natural guess). It is taken as is when it achieved
-        // at least full_step_acceptance of the model's decrease (and no tet was clamped, which
-        // would change the step); otherwise a more damped direction is tried
-        // (damped_step_trials), and after the last one Brent searches [0, max_step] (§3.4).
-        const double full = phi(std::min(1.0, options.max_step));
-        // With damped trials the test is on Φ at the clamped state itself (a few tets at the
-        // floor need not spoil a step that achieves the model's decrease); without, as before.
-        full_step_good = (record.clamped_tets == 0 || options.damped_step_trials > 0) &&
-                         options.full_step_acceptance > 0.0 && record.predicted_decrease > 0.0 &&
-                         before - full >= options.full_step_acceptance * record.predicted_decrease;
-        // The best state of all trials is taken (phi keeps it), usually this full step.
-        if (full_step_good) break;
-        if (trial >= options.damped_step_trials) break;
-        damping = damping == 0.0 ? options.damping_start : damping * options.damping_growth;
-      }
-      if (linear_failed) {
-        termination = GaussNewtonTermination::kLinearSolveFailed;
-        summary.message = error;
-        break;
-      }
-      if (!full_step_good) {
-        brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
-                       options.line_search_evaluations - 1);
-      }
-      if (best_eta <= 0.0 && record.clamped_tets > 0 && options.projected_search_fallback) {
-        projected = true;  // its full step is clamp(s + d), already tried
-        record.projected_search = true;
-        brent_minimise(phi, 0.0, options.max_step, options.line_search_tolerance,
-                       options.line_search_evaluations - 1);
-      }
-      record.line_search_seconds = seconds_since(search_start);
-      record.equilibrium_solves = r.equilibrium_solves - solves_before;
-      bool stage_done = false;
-      if (best_eta <= 0.0) {
-        record.objective = before;
-        std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
-        record.seconds = seconds_since(start);
-        summary.iterations.push_back(record);
-        if (progress) progress(record);
-        termination = GaussNewtonTermination::kLineSearchFailed;
-        stage_done = !ramping;
-      } else {
-        projected = best_projected;
-        r.s = best_s;
-        r.x = best_x;
-        if (free) r.rigid_update(stage, r.x, rigid_rounds(stage));
-        record.step = best_eta;
-        record.objective = best_value;
-        std::tie(record.marker_error_mean, record.marker_error_max) = r.marker_errors(stage, r.x);
-        record.seconds = seconds_since(start);
-        summary.iterations.push_back(record);
-        if (progress) progress(record);
-        if (ramping) {
-          // The stopping tests wait for the full weight.
-        } else if ((stage == RegistrationStage::kIcpMarkers ||
-                    (stage == RegistrationStage::kLandmarks && stage != final_stage)) &&
-                   options.max_marker_error > 0.0 &&
-                   record.marker_error_max <= options.max_marker_error) {
-          // The ICP stage's markers met; or the landmarks met in a landmark stage that only
-          // prepares the ICP stage (its further iterations polish the smoothness the ICP stage
-          // changes anyway: 10-20 iterations of relative decreases ~1e-5 on the vertebrae).
-          termination = GaussNewtonTermination::kMarkerTolerance;
-          stage_done = true;
-        } else if (best_eta < options.min_step) {
-          termination = GaussNewtonTermination::kSmallStep;
-          stage_done = true;
-        } else if (before - best_value <= options.relative_decrease_tolerance * before) {
-          termination = GaussNewtonTermination::kSmallDecrease;
-          stage_done = true;
-        } else if (stage == RegistrationStage::kIcpMarkers &&
-                   options.icp_no_progress_iterations > 0) {
-          // Φ after each iteration at the full weights (icp_no_progress_iterations): iterations
-          // since the last one that lowered the stage's best by relative_decrease_tolerance.
-          double best_after = kInfinity;
-          int since_best = 0;
-          for (const GaussNewtonIteration& it : summary.iterations) {
-            const bool it_ramping =
-                static_cast<std::size_t>(it.iteration) <= options.icp_weight_ramp.size() ||
-                it.iteration <= options.icp_point_to_plane_iterations;
-            if (it.stage != stage || it_ramping || !(it.step > 0.0)) continue;
-            if (it.objective < (1.0 - options.relative_decrease_tolerance) * best_after) {
-              best_after = it.objective;
-              since_best = 0;
-            } else {
-              ++since_best;
-            }
-          }
-          if (since_best >= options.icp_no_progress_iterations) {
-            termination = GaussNewtonTermination::kSmallDecrease;
-            stage_done = true;
-          }
-        }
-      }
+      if (end == IterationEnd::kStop) break;
+      const bool stage_done = end == IterationEnd::kStageDone;
       // The checkpoint names what runs next: this stage's next iteration, or the next stage.
       if (stage_done || iteration == options.max_iterations_per_stage) {
         save(

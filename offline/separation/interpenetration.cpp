@@ -225,21 +225,22 @@ struct RoundResult {
   std::string failure;
 };
 
-/// The contact solve on the active regions of both meshes: Newton with CHOLMOD on the free dofs.
-/// rest_a/rest_b are the input shapes (the rest shapes of the elastic energy); a/b hold the current
-/// positions and receive the new ones (free vertices only).
-RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const TetMesh& rest_b,
-                        const Region& region_a, const Region& region_b,
-                        const std::map<std::pair<int, int>, ContactPair>& pairs,
-                        const common::StableNeoHookean& material, double h,
-                        const InterpenetrationOptions& options) {
-  RoundResult result;
-  // Sub-mesh of the active tets of both meshes, vertices renumbered (A's first).
-  const TetMesh* meshes[2] = {&a, &b};
-  const TetMesh* rests[2] = {&rest_a, &rest_b};
-  const Region* regions[2] = {&region_a, &region_b};
-  std::vector<std::vector<int>> local(2);
+/// The active tets of both meshes as one sub-mesh, vertices renumbered (A's first).
+struct ContactSubMesh {
+  std::vector<std::vector<int>> local;      // per mesh: vertex -> sub vertex (−1: not active)
   std::vector<std::pair<int, int>> global;  // sub vertex -> (mesh, vertex)
+  Eigen::MatrixXd rest;                     // the input shapes' positions (the rest shape)
+  Eigen::VectorXd x;                        // the current positions
+  std::vector<char> is_free;
+  common::TetIndices tets;
+};
+
+ContactSubMesh contact_sub_mesh(const TetMesh* const meshes[2], const TetMesh* const rests[2],
+                                const Region* const regions[2]) {
+  ContactSubMesh sub;
+  std::vector<std::vector<int>>& local = sub.local;
+  std::vector<std::pair<int, int>>& global = sub.global;
+  local.resize(2);
   std::vector<std::array<int, 4>> sub_tets;
   for (int m = 0; m < 2; ++m) {
     local[static_cast<std::size_t>(m)].assign(static_cast<std::size_t>(meshes[m]->vertices.rows()),
@@ -260,43 +261,50 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
     }
   }
   const auto n = static_cast<Eigen::Index>(global.size());
-  Eigen::MatrixXd rest(n, 3);
-  Eigen::VectorXd x(3 * n);
-  std::vector<char> is_free(static_cast<std::size_t>(n), 0);
+  Eigen::MatrixXd& rest = sub.rest;
+  Eigen::VectorXd& x = sub.x;
+  std::vector<char>& is_free = sub.is_free;
+  rest.resize(n, 3);
+  x.resize(3 * n);
+  is_free.assign(static_cast<std::size_t>(n), 0);
   for (Eigen::Index i = 0; i < n; ++i) {
     const auto [m, v] = global[static_cast<std::size_t>(i)];
     rest.row(i) = rests[m]->vertices.row(v);
     x.segment<3>(3 * i) = meshes[m]->vertices.row(v).transpose();
     is_free[static_cast<std::size_t>(i)] = regions[m]->free[static_cast<std::size_t>(v)];
   }
-  common::TetIndices tets(static_cast<Eigen::Index>(sub_tets.size()), 4);
+  common::TetIndices& tets = sub.tets;
+  tets.resize(static_cast<Eigen::Index>(sub_tets.size()), 4);
   for (std::size_t t = 0; t < sub_tets.size(); ++t)
     for (int k = 0; k < 4; ++k)
       tets(static_cast<Eigen::Index>(t), k) = sub_tets[t][static_cast<std::size_t>(k)];
+  return sub;
+}
 
-  PlasticElasticEnergyOptions energy_options;
-  energy_options.projection = common::HessianProjection::kProjectElement;
-  energy_options.storage = common::PatternStorage::kUpper;
-  auto energy = PlasticElasticEnergy::create(rest, tets, material, energy_options);
-  if (!energy) {
-    result.failure = "the active region is not a valid tet mesh";
-    return result;
+/// A contact pair on sub vertices: the vertex and the three face corners, each a sub-mesh vertex
+/// (sub >= 0) or, when outside the active region, a constant position.
+struct SubPair {
+  std::array<int, 4> sub{};              // −1: constant
+  std::array<double, 4> sign{};          // 1, −w0, −w1, −w2
+  std::array<Eigen::Vector3d, 4> fixed;  // positions of constant participants
+  Eigen::Vector3d normal;
+  double gap;
+  double stiffness;
+
+  double gap_at(const Eigen::VectorXd& y) const {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (std::size_t k = 0; k < 4; ++k)
+      d += sign[k] * (sub[k] >= 0 ? Eigen::Vector3d(y.segment<3>(3 * sub[k])) : fixed[k]);
+    return normal.dot(d) - gap;
   }
-  const Eigen::VectorXd s = identity_plastic_strains(tets.rows());
+};
 
-  // Contact pairs on sub vertices: the vertex and the three face corners, each a sub-mesh vertex
-  // (sub >= 0) or, when outside the active region, a constant position.
-  struct SubPair {
-    std::array<int, 4> sub{};              // −1: constant
-    std::array<double, 4> sign{};          // 1, −w0, −w1, −w2
-    std::array<Eigen::Vector3d, 4> fixed;  // positions of constant participants
-    Eigen::Vector3d normal;
-    double gap;
-    double stiffness;
-  };
+std::vector<SubPair> contact_sub_pairs(const std::map<std::pair<int, int>, ContactPair>& pairs,
+                                       const std::vector<std::vector<int>>& local,
+                                       const TetMesh* const meshes[2]) {
   std::vector<SubPair> sub_pairs;
   for (const auto& [key, pair] : pairs) {
-    SubPair sp;
+    SubPair sp{};
     const int other = 1 - pair.mesh;
     const int corners[4] = {pair.vertex, pair.face[0], pair.face[1], pair.face[2]};
     const int owner[4] = {pair.mesh, other, other, other};
@@ -311,19 +319,26 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
     sp.stiffness = pair.stiffness;
     sub_pairs.push_back(sp);
   }
-  const auto pair_gap = [](const SubPair& sp, const Eigen::VectorXd& y) {
-    Eigen::Vector3d d = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < 4; ++k)
-      d += sp.sign[k] *
-           (sp.sub[k] >= 0 ? Eigen::Vector3d(y.segment<3>(3 * sp.sub[k])) : sp.fixed[k]);
-    return sp.normal.dot(d) - sp.gap;
-  };
+  return sub_pairs;
+}
+
+/// The energy of a contact round on the sub-mesh: elasticity (identity plastic strains), the
+/// anchors of the free vertices to their input positions, and the one-sided contact penalties.
+struct ContactRoundEnergy {
+  const ContactSubMesh& sub;
+  const std::vector<SubPair>& sub_pairs;
+  PlasticElasticEnergy& energy;
+  Eigen::VectorXd s;
+  double anchor = 0.0;
+  Eigen::VectorXd x_input;
+
   // The contact Hessians c JᵀJ (upper triangle), J = [n, −w0 n, −w1 n, −w2 n]ᵀ. Inactive pairs
   // keep explicit zero entries, so the pattern is the same for the whole round.
-  const auto contact_hessian = [&](const Eigen::VectorXd& y) {
+  Eigen::SparseMatrix<double> contact_hessian(const Eigen::VectorXd& y) const {
+    const auto n = static_cast<Eigen::Index>(sub.global.size());
     std::vector<Eigen::Triplet<double>> triplets;
     for (const SubPair& sp : sub_pairs) {
-      const double g = pair_gap(sp, y);
+      const double g = sp.gap_at(y);
       const double c = g < 0.0 ? sp.stiffness : 0.0;
       const Eigen::Matrix3d nn = sp.normal * sp.normal.transpose();
       for (std::size_t p = 0; p < 4; ++p) {
@@ -340,31 +355,29 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
     Eigen::SparseMatrix<double> P(3 * n, 3 * n);
     P.setFromTriplets(triplets.begin(), triplets.end());
     return P;
-  };
-  const double anchor = kAnchorStiffness * material.mu() * h;
-  const Eigen::VectorXd x_input = [&] {
-    Eigen::VectorXd r(3 * n);
-    for (Eigen::Index i = 0; i < n; ++i) r.segment<3>(3 * i) = rest.row(i).transpose();
-    return r;
-  }();
+  }
 
-  const auto inverted = [&](const Eigen::VectorXd& y) {
+  bool inverted(const Eigen::VectorXd& y) const {
+    const common::TetIndices& tets = sub.tets;
     for (Eigen::Index t = 0; t < tets.rows(); ++t) {
       common::Matrix3x4d X;
       for (int k = 0; k < 4; ++k) X.col(k) = y.segment<3>(3 * tets(t, k));
       if (!(common::signed_volume(X) > 0.0)) return true;
     }
     return false;
-  };
+  }
+
   // Total energy and (optionally) gradient with the fixed dofs' entries zeroed.
-  const auto total = [&](const Eigen::VectorXd& y, Eigen::VectorXd* gradient,
-                         bool stiffness) -> std::optional<double> {
+  std::optional<double> total(const Eigen::VectorXd& y, Eigen::VectorXd* gradient,
+                              bool stiffness) const {
+    const auto n = static_cast<Eigen::Index>(sub.global.size());
+    const std::vector<char>& is_free = sub.is_free;
     PlasticEnergyRequest request;
     request.gradient_x = gradient != nullptr;
     request.stiffness = stiffness;
-    if (!energy->evaluate(s, y, request).valid()) return std::nullopt;
-    double e = energy->energy();
-    if (gradient != nullptr) *gradient = energy->gradient_x();
+    if (!energy.evaluate(s, y, request).valid()) return std::nullopt;
+    double e = energy.energy();
+    if (gradient != nullptr) *gradient = energy.gradient_x();
     for (Eigen::Index i = 0; i < n; ++i) {
       if (is_free[static_cast<std::size_t>(i)] == 0) continue;
       const Eigen::Vector3d d = y.segment<3>(3 * i) - x_input.segment<3>(3 * i);
@@ -372,7 +385,7 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
       if (gradient != nullptr) gradient->segment<3>(3 * i) += anchor * d;
     }
     for (const SubPair& sp : sub_pairs) {
-      const double g = pair_gap(sp, y);
+      const double g = sp.gap_at(y);
       if (g >= 0.0) continue;
       e += 0.5 * sp.stiffness * g * g;
       if (gradient == nullptr) continue;
@@ -387,7 +400,49 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
     }
     if (!std::isfinite(e)) return std::nullopt;
     return e;
+  }
+};
+
+/// The contact solve on the active regions of both meshes: Newton with CHOLMOD on the free dofs.
+/// rest_a/rest_b are the input shapes (the rest shapes of the elastic energy); a/b hold the current
+/// positions and receive the new ones (free vertices only).
+RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const TetMesh& rest_b,
+                        const Region& region_a, const Region& region_b,
+                        const std::map<std::pair<int, int>, ContactPair>& pairs,
+                        const common::StableNeoHookean& material, double h,
+                        const InterpenetrationOptions& options) {
+  RoundResult result;
+  const TetMesh* const meshes[2] = {&a, &b};
+  const TetMesh* const rests[2] = {&rest_a, &rest_b};
+  const Region* const regions[2] = {&region_a, &region_b};
+  ContactSubMesh sub = contact_sub_mesh(meshes, rests, regions);
+  const auto n = static_cast<Eigen::Index>(sub.global.size());
+  const std::vector<char>& is_free = sub.is_free;
+  Eigen::VectorXd& x = sub.x;
+
+  PlasticElasticEnergyOptions energy_options;
+  energy_options.projection = common::HessianProjection::kProjectElement;
+  energy_options.storage = common::PatternStorage::kUpper;
+  auto energy = PlasticElasticEnergy::create(sub.rest, sub.tets, material, energy_options);
+  if (!energy) {
+    result.failure = "the active region is not a valid tet mesh";
+    return result;
+  }
+  const std::vector<SubPair> sub_pairs = contact_sub_pairs(pairs, sub.local, meshes);
+  ContactRoundEnergy round{sub,
+                           sub_pairs,
+                           *energy,
+                           identity_plastic_strains(sub.tets.rows()),
+                           kAnchorStiffness * material.mu() * h,
+                           Eigen::VectorXd(3 * n)};
+  for (Eigen::Index i = 0; i < n; ++i)
+    round.x_input.segment<3>(3 * i) = sub.rest.row(i).transpose();
+  const double anchor = round.anchor;
+  const auto total = [&](const Eigen::VectorXd& y, Eigen::VectorXd* gradient, bool stiffness) {
+    return round.total(y, gradient, stiffness);
   };
+  const auto inverted = [&](const Eigen::VectorXd& y) { return round.inverted(y); };
+  const auto contact_hessian = [&](const Eigen::VectorXd& y) { return round.contact_hessian(y); };
 
   SparseCholesky cholesky;
   Eigen::VectorXd gradient(3 * n), step(3 * n), trial(3 * n);
@@ -464,7 +519,7 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
   // Write back the free vertices (fixed ones keep their input bits).
   for (Eigen::Index i = 0; i < n; ++i) {
     if (is_free[static_cast<std::size_t>(i)] == 0) continue;
-    const auto [m, v] = global[static_cast<std::size_t>(i)];
+    const auto [m, v] = sub.global[static_cast<std::size_t>(i)];
     TetMesh& mesh = m == 0 ? a : b;
     mesh.vertices.row(v) = x.segment<3>(3 * i).transpose();
   }

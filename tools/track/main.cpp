@@ -146,6 +146,138 @@ double node_rms_error(const rt::Tracker& tracker, const Eigen::MatrixXd& truth_n
   return std::sqrt(sum / n);
 }
 
+// The init polyline must lie on the first processed frame.
+void check_init_on_frame(const tools::TrackInit& init, const std::string& init_path,
+                         const cv::Mat& grey) {
+  const int n = static_cast<int>(init.beam.rest_positions.cols());
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector2d X = init.beam.rest_positions.col(i);
+    if (X.x() < 0 || X.y() < 0 || X.x() > grey.cols - 1 || X.y() > grey.rows - 1) {
+      throw tools::InputError(init_path + ": nodes[" + std::to_string(i) + "] = [" +
+                              std::to_string(X.x()) + ", " + std::to_string(X.y()) +
+                              "] is outside the first frame (" + std::to_string(grey.cols) + "x" +
+                              std::to_string(grey.rows) + ")");
+    }
+  }
+}
+
+// What a run measured, for its summary.
+struct TrackFigures {
+  std::map<std::string, int> statuses, snake_statuses;
+  std::vector<double> latencies, errors, load_errors, large_load_errors, stabilise_ms;
+  std::vector<double> snake_errors, snake_latencies;
+};
+
+// The run's figures on the terminal: statuses, latency, stabilisation, errors against the truth,
+// the snake baseline's, and the files written.
+void print_track_summary(const Args& args, int processed, const std::string& source,
+                         const tools::TrackInit& init, const rt::TrackerOptions& snake_options,
+                         TrackFigures& figures) {
+  std::map<std::string, int>& statuses = figures.statuses;
+  std::map<std::string, int>& snake_statuses = figures.snake_statuses;
+  std::vector<double>& latencies = figures.latencies;
+  std::vector<double>& errors = figures.errors;
+  std::vector<double>& load_errors = figures.load_errors;
+  std::vector<double>& large_load_errors = figures.large_load_errors;
+  std::vector<double>& stabilise_ms = figures.stabilise_ms;
+  std::vector<double>& snake_errors = figures.snake_errors;
+  std::vector<double>& snake_latencies = figures.snake_latencies;
+  std::cout << "sinew-track: " << processed << " frames from " << source << " ("
+            << (init.options.model == rt::TrackerModel::kBeam ? "beam" : "snake") << " model)\n";
+  std::cout << "  status:";
+  for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
+  std::cout << "\n  latency per frame: median " << tools::percentile(latencies, 0.5) << " us, p99 "
+            << tools::percentile(latencies, 0.99) << " us\n";
+  if (!stabilise_ms.empty()) {
+    std::cout << "  stabilisation (ECC homography + warp, outside the tracker): median "
+              << tools::percentile(stabilise_ms, 0.5) << " ms, p99 "
+              << tools::percentile(stabilise_ms, 0.99) << " ms\n";
+  }
+  if (!errors.empty()) {
+    double mean = 0.0;
+    for (double e : errors) mean += e;
+    std::cout << "  node RMS error vs truth: mean " << mean / errors.size() << " px, max "
+              << *std::max_element(errors.begin(), errors.end()) << " px\n";
+  }
+  if (args.compare_snake) {
+    std::cout << "  snake baseline (seed 000 §5.2, stretch " << snake_options.snake_stretch_weight
+              << ", bend " << snake_options.snake_bend_weight << "):";
+    for (const auto& [k, v] : snake_statuses) std::cout << " " << k << " " << v;
+    std::cout << ", median latency " << tools::percentile(snake_latencies, 0.5) << " us";
+    if (!snake_errors.empty()) {
+      double mean = 0.0;
+      for (double e : snake_errors) mean += e;
+      std::cout << ", node RMS error mean " << mean / snake_errors.size() << " px, max "
+                << *std::max_element(snake_errors.begin(), snake_errors.end()) << " px";
+    }
+    std::cout << "\n";
+  }
+  if (!load_errors.empty()) {
+    std::cout << "  fitted load error vs truth: median "
+              << tools::percentile(load_errors, 0.5) * 100 << " %, max "
+              << *std::max_element(load_errors.begin(), load_errors.end()) * 100
+              << " % (relative errors of tiny loads are large)";
+    if (!large_load_errors.empty()) {
+      std::cout << "; frames with lambda >= 1: max "
+                << *std::max_element(large_load_errors.begin(), large_load_errors.end()) * 100
+                << " %";
+    }
+    std::cout << "\n";
+  }
+  std::cout << "  results: " << args.out << "\n";
+  if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
+}
+
+// The errors of a frame against the truth (sinew-synth's truth.jsonl): node RMS (and the
+// snake's), and the fitted load's relative error at the load nodes; into the JSON line and the
+// figures.
+void compare_with_truth(const TruthFrame& truth_frame, const rt::Tracker& tracker,
+                        const rt::Tracker& snake, const tools::TrackInit& init, bool compare_snake,
+                        nlohmann::json& line, TrackFigures& figures) {
+  const TruthFrame* const truth = &truth_frame;
+  std::vector<double>& errors = figures.errors;
+  std::vector<double>& snake_errors = figures.snake_errors;
+  std::vector<double>& load_errors = figures.load_errors;
+  std::vector<double>& large_load_errors = figures.large_load_errors;
+  const double err = node_rms_error(tracker, truth->nodes);
+  line["error_px"] = err;
+  errors.push_back(err);
+  if (compare_snake) {
+    const double snake_err = node_rms_error(snake, truth->nodes);
+    line["snake"]["error_px"] = snake_err;
+    snake_errors.push_back(snake_err);
+  }
+  if (!init.load_nodes.empty() && init.options.model == rt::TrackerModel::kBeam) {
+    Eigen::Vector2d applied = Eigen::Vector2d::Zero(), fitted = Eigen::Vector2d::Zero();
+    for (int node : init.load_nodes) {
+      applied += truth->loads.row(node).head<2>().transpose();
+      fitted += tracker.fitted_loads().segment<2>(3 * node);
+    }
+    if (applied.norm() > 0) {
+      const double rel = (fitted - applied).norm() / applied.norm();
+      line["load_error"] = rel;
+      load_errors.push_back(rel);
+      if (truth->lambda >= 1.0) large_load_errors.push_back(rel);
+    }
+  }
+}
+
+// --verbose: one line per frame with its status, latency and errors against the truth.
+void print_frame_line(int index, const rt::FrameSummary& s, const nlohmann::json& line,
+                      bool compare_snake, const rt::FrameSummary& snake_summary) {
+  std::printf("frame %4d  %-13s latency %6.0f us", index, rt::to_string(s.status), s.seconds * 1e6);
+  if (line.contains("error_px"))
+    std::printf("  node error %.3f px", line["error_px"].get<double>());
+  if (line.contains("load_error")) {
+    std::printf("  tip load error %5.1f %%", 100 * line["load_error"].get<double>());
+  }
+  if (compare_snake && line["snake"].contains("error_px")) {
+    std::printf("  | snake %-13s node error %.2f px", rt::to_string(snake_summary.status),
+                line["snake"]["error_px"].get<double>());
+  }
+  std::printf("\n");
+}
+
 int run(const Args& args) {
   tools::TrackInit init = tools::read_track_init(args.init);
   if (args.model == "snake") init.options.model = rt::TrackerModel::kSnake;
@@ -161,35 +293,26 @@ int run(const Args& args) {
   rt::TrackerOptions snake_options = init.options;
   snake_options.model = rt::TrackerModel::kSnake;
   rt::Tracker snake(init.beam, snake_options);
-  std::vector<double> snake_errors, snake_latencies;
-  std::map<std::string, int> snake_statuses;
+  TrackFigures figures;
+  std::vector<double>& snake_latencies = figures.snake_latencies;
+  std::map<std::string, int>& snake_statuses = figures.snake_statuses;
   const int n = tracker.num_nodes();
 
   std::ofstream out(args.out + ".tmp");
   if (!out) throw tools::InputError(args.out + ": cannot open file for writing");
   tools::OverlaySink overlay(args.overlay);
 
-  std::vector<double> latencies, errors, load_errors, large_load_errors, stabilise_ms;
+  std::vector<double>& latencies = figures.latencies;
+  std::vector<double>& stabilise_ms = figures.stabilise_ms;
   Eigen::VectorXd forces_at_since;  // the reported forces on frame --forces-since
   std::optional<rt::Stabiliser> stabiliser;
   cv::Mat stabilised;
   Eigen::Matrix2Xd polyline(2, n);
-  std::map<std::string, int> statuses;
+  std::map<std::string, int>& statuses = figures.statuses;
   cv::Mat grey, colour;
   int index = 0, processed = 0;
   while (source.next(grey, index)) {
-    if (processed == 0) {
-      // The init polyline must lie on the first processed frame.
-      for (int i = 0; i < n; ++i) {
-        const Eigen::Vector2d X = init.beam.rest_positions.col(i);
-        if (X.x() < 0 || X.y() < 0 || X.x() > grey.cols - 1 || X.y() > grey.rows - 1) {
-          throw tools::InputError(args.init + ": nodes[" + std::to_string(i) + "] = [" +
-                                  std::to_string(X.x()) + ", " + std::to_string(X.y()) +
-                                  "] is outside the first frame (" + std::to_string(grey.cols) +
-                                  "x" + std::to_string(grey.rows) + ")");
-        }
-      }
-    }
+    if (processed == 0) check_init_on_frame(init, args.init, grey);
     nlohmann::json homography;
     if (args.stabilise) {
       // Every frame is resampled into the first processed frame's coordinates (seed 000 §5.2).
@@ -267,43 +390,10 @@ int run(const Args& args) {
     }
     const auto t = truth.find(index);
     if (t != truth.end() && t->second.nodes.rows() == n) {
-      const double err = node_rms_error(tracker, t->second.nodes);
-      line["error_px"] = err;
-      errors.push_back(err);
-      if (args.compare_snake) {
-        const double snake_err = node_rms_error(snake, t->second.nodes);
-        line["snake"]["error_px"] = snake_err;
-        snake_errors.push_back(snake_err);
-      }
-      if (!init.load_nodes.empty() && init.options.model == rt::TrackerModel::kBeam) {
-        Eigen::Vector2d applied = Eigen::Vector2d::Zero(), fitted = Eigen::Vector2d::Zero();
-        for (int node : init.load_nodes) {
-          applied += t->second.loads.row(node).head<2>().transpose();
-          fitted += tracker.fitted_loads().segment<2>(3 * node);
-        }
-        if (applied.norm() > 0) {
-          const double rel = (fitted - applied).norm() / applied.norm();
-          line["load_error"] = rel;
-          load_errors.push_back(rel);
-          if (t->second.lambda >= 1.0) large_load_errors.push_back(rel);
-        }
-      }
+      compare_with_truth(t->second, tracker, snake, init, args.compare_snake, line, figures);
     }
     out << line.dump() << "\n";
-    if (args.verbose) {
-      std::printf("frame %4d  %-13s latency %6.0f us", index, rt::to_string(s.status),
-                  s.seconds * 1e6);
-      if (line.contains("error_px"))
-        std::printf("  node error %.3f px", line["error_px"].get<double>());
-      if (line.contains("load_error")) {
-        std::printf("  tip load error %5.1f %%", 100 * line["load_error"].get<double>());
-      }
-      if (args.compare_snake && line["snake"].contains("error_px")) {
-        std::printf("  | snake %-13s node error %.2f px", rt::to_string(snake_summary.status),
-                    line["snake"]["error_px"].get<double>());
-      }
-      std::printf("\n");
-    }
+    if (args.verbose) print_frame_line(index, s, line, args.compare_snake, snake_summary);
 
     if (overlay.enabled()) {
       cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
@@ -324,50 +414,7 @@ int run(const Args& args) {
   std::filesystem::rename(args.out + ".tmp", args.out);
 
   if (!args.quiet) {
-    std::cout << "sinew-track: " << processed << " frames from " << source.description() << " ("
-              << (init.options.model == rt::TrackerModel::kBeam ? "beam" : "snake") << " model)\n";
-    std::cout << "  status:";
-    for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
-    std::cout << "\n  latency per frame: median " << tools::percentile(latencies, 0.5)
-              << " us, p99 " << tools::percentile(latencies, 0.99) << " us\n";
-    if (!stabilise_ms.empty()) {
-      std::cout << "  stabilisation (ECC homography + warp, outside the tracker): median "
-                << tools::percentile(stabilise_ms, 0.5) << " ms, p99 "
-                << tools::percentile(stabilise_ms, 0.99) << " ms\n";
-    }
-    if (!errors.empty()) {
-      double mean = 0.0;
-      for (double e : errors) mean += e;
-      std::cout << "  node RMS error vs truth: mean " << mean / errors.size() << " px, max "
-                << *std::max_element(errors.begin(), errors.end()) << " px\n";
-    }
-    if (args.compare_snake) {
-      std::cout << "  snake baseline (seed 000 §5.2, stretch " << snake_options.snake_stretch_weight
-                << ", bend " << snake_options.snake_bend_weight << "):";
-      for (const auto& [k, v] : snake_statuses) std::cout << " " << k << " " << v;
-      std::cout << ", median latency " << tools::percentile(snake_latencies, 0.5) << " us";
-      if (!snake_errors.empty()) {
-        double mean = 0.0;
-        for (double e : snake_errors) mean += e;
-        std::cout << ", node RMS error mean " << mean / snake_errors.size() << " px, max "
-                  << *std::max_element(snake_errors.begin(), snake_errors.end()) << " px";
-      }
-      std::cout << "\n";
-    }
-    if (!load_errors.empty()) {
-      std::cout << "  fitted load error vs truth: median "
-                << tools::percentile(load_errors, 0.5) * 100 << " %, max "
-                << *std::max_element(load_errors.begin(), load_errors.end()) * 100
-                << " % (relative errors of tiny loads are large)";
-      if (!large_load_errors.empty()) {
-        std::cout << "; frames with lambda >= 1: max "
-                  << *std::max_element(large_load_errors.begin(), large_load_errors.end()) * 100
-                  << " %";
-      }
-      std::cout << "\n";
-    }
-    std::cout << "  results: " << args.out << "\n";
-    if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
+    print_track_summary(args, processed, source.description(), init, snake_options, figures);
   }
   return 0;
 }

@@ -98,9 +98,190 @@ nlohmann::json point(const Eigen::Vector2d& p) {
   return {p.x(), p.y()};
 }
 
-}  // namespace
+// The first JSON line: what detection found on the first frame, and the read-out's options.
+nlohmann::json detection_line(const rt::WhiskerDetection& found, int index, double detect_ms,
+                              const rt::WhiskerReadoutOptions& readout) {
+  nlohmann::json record = nlohmann::json::array();
+  for (std::size_t w = 0; w < found.whiskers.size(); ++w) {
+    record.push_back({{"id", w},
+                      {"follicle", point(found.whiskers[w].follicle)},
+                      {"length_px", found.whiskers[w].length_px},
+                      {"contrast_percent", found.whiskers[w].contrast_percent}});
+  }
+  return nlohmann::json{
+      {"detection",
+       {{"frame", index},
+        {"face", rt::to_string(found.face)},
+        {"backlight", found.backlight},
+        {"noise_percent", found.noise_percent},
+        {"seed_contrast", found.seed_contrast},
+        {"follow_contrast", found.follow_contrast},
+        {"seconds", detect_ms * 1e-3},
+        {"whiskers", record},
+        {"readout",
+         {{"mm_per_px", readout.physics.mm_per_px},
+          {"young_modulus_gpa", readout.physics.young_modulus_gpa},
+          {"base_radius_um", readout.physics.base_radius_um},
+          {"tip_radius_um", readout.physics.tip_radius_um},
+          {"length_mm", readout.physics.length_mm},
+          {"axis_angle_deg", readout.axis_angle_deg},
+          {"curvature_window_px", {readout.curvature_from_px, readout.curvature_to_px}}}}}}};
+}
 
-int run_whiskers(const WhiskerTrackArgs& args) {
+// The read-out's column names, which carry their units.
+struct ReadoutKeys {
+  std::string curvature, delta, moment;  // e.g. curvature_per_mm, delta_curvature_per_mm, m0_N_m
+  std::string force_unit, torque_unit;   // "_N", "_N_m" with a scale, else "_model"
+};
+
+// Whisker w's JSON record of a frame; fills its table row (the value columns' order, NaN where
+// empty), its time series point, and its contact and found contact load for the overlay.
+nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const std::string& status,
+                              const ReadoutKeys& keys, std::vector<double>& values,
+                              WhiskerSeries& ts, int index, rt::WhiskerContact& contact,
+                              std::optional<rt::WhiskerSessionWhisker::ContactLoad>& found_load,
+                              double& largest_force, double& largest_moment) {
+  const rt::WhiskerTracker& tracker = session.tracker();
+  const rt::Tracker& t = tracker.whisker(w);
+  const rt::WhiskerFrame& r = tracker.result(w);
+  nlohmann::json nodes = nlohmann::json::array();
+  for (int i = 0; i < t.num_nodes(); ++i) {
+    const Eigen::Vector2d x = t.node_position(i);
+    nodes.push_back({x.x(), x.y(), t.state()[3 * i + 2]});
+  }
+  nlohmann::json record = {{"id", w},
+                           {"status", status},
+                           {"nodes", nodes},
+                           {"follicle", point(r.follicle)},
+                           {"tip", point(r.tip)},
+                           {"length_px", r.length_px},
+                           {"on_neighbour", r.on_neighbour},
+                           {"jumped", r.jumped},
+                           {"reacquired", r.reacquired},
+                           {"inlier_fraction", r.summary.inlier_fraction}};
+  // The read-out of a lost whisker's last state would be stale: none.
+  ts.frame.push_back(index);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  ts.base_angle_deg.push_back(nan);
+  ts.delta_curvature.push_back(nan);
+  ts.moment.push_back(nan);
+  ts.contact.push_back(nan);
+  // Nor of a whisker placed on its detection without a fit (not converged): its node
+  // rotations are the detection's chords', not an equilibrium's.
+  values.assign(values.size(), nan);
+  const rt::WhiskerSessionWhisker& sw = session.whisker(w);
+  if (sw.readout) {
+    const rt::WhiskerReadout& q = *sw.readout;
+    ts.base_angle_deg.back() = q.base_angle_deg;
+    ts.delta_curvature.back() = q.delta_curvature;
+    ts.moment.back() = q.moment;
+    record["base_angle_deg"] = q.base_angle_deg;
+    record[keys.curvature] = q.curvature;
+    record[keys.delta] = q.delta_curvature;
+    record[keys.moment] = q.moment;
+    values = {r.follicle.x(),
+              r.follicle.y(),
+              r.tip.x(),
+              r.tip.y(),
+              r.length_px,
+              q.base_angle_deg,
+              q.curvature,
+              q.delta_curvature,
+              q.moment,
+              nan,
+              nan,
+              nan,
+              nan,
+              nan,
+              nan};
+    // Contact with a pole or another object the detection of this frame saw.
+    if (sw.contact) {
+      const rt::WhiskerContact& c = *sw.contact;
+      contact = c;
+      record["contact"] = c.touching;
+      if (std::isfinite(c.distance_px)) record["object_distance_px"] = c.distance_px;
+      values[9] = c.touching ? 1.0 : 0.0;
+      ts.contact.back() = values[9];
+      if (c.touching) {
+        record["contact_arc_length_px"] = c.arc_length_px;
+        record["contact_point"] = point(c.point);
+        values[10] = c.arc_length_px;
+      }
+      if (sw.contact_load) {
+        // Model units (the trackers' section, pixels) until the load is put in SI.
+        const auto& load = *sw.contact_load;
+        if (load.equilibrium) found_load = load;  // the overlay draws found loads only
+        largest_force = std::max(largest_force, load.force.norm());
+        largest_moment = std::max(largest_moment, std::abs(load.moment));
+        record["contact_force" + keys.force_unit] = point(load.force);
+        record["contact_moment" + keys.torque_unit] = load.moment;
+        record["contact_load_point"] = point(load.point);
+        record["contact_load_rms_px"] = load.rms_px;
+        record["contact_load_converged"] = load.converged;
+        record["pammer_force" + keys.force_unit] = load.pammer_force;
+        record["pammer_moment" + keys.torque_unit] = load.pammer_moment;
+        values[11] = load.force.x();
+        values[12] = load.force.y();
+        values[13] = load.moment;
+        values[14] = load.pammer_moment;
+      }
+    }
+  }
+  return record;
+}
+
+// The HDF5 file (--hdf5): the table's columns, every whisker's node count, the units and the
+// read-out's options as attributes.
+std::unique_ptr<WhiskerHdf5Writer> open_hdf5(const WhiskerTrackArgs& args,
+                                             const rt::WhiskerTracker& tracker,
+                                             const std::vector<std::string>& value_columns, bool si,
+                                             std::vector<std::vector<double>>& centrelines) {
+  std::unique_ptr<WhiskerHdf5Writer> hdf5;
+  std::vector<int> nodes;
+  for (int w = 0; w < tracker.num_whiskers(); ++w) nodes.push_back(tracker.whisker(w).num_nodes());
+  hdf5 = std::make_unique<WhiskerHdf5Writer>(args.hdf5, value_columns, nodes);
+  centrelines.resize(nodes.size());
+  hdf5->attribute("source", args.input);
+  hdf5->attribute("units", si ? "lengths px (follicle, tip, nodes), curvature 1/mm, moment N m"
+                              : "lengths px, curvature 1/px, moment pixel model units");
+  hdf5->attribute("readout",
+                  nlohmann::json{{"mm_per_px", args.readout.physics.mm_per_px},
+                                 {"young_modulus_gpa", args.readout.physics.young_modulus_gpa},
+                                 {"base_radius_um", args.readout.physics.base_radius_um},
+                                 {"tip_radius_um", args.readout.physics.tip_radius_um},
+                                 {"axis_angle_deg", args.readout.axis_angle_deg}}
+                      .dump());
+  return hdf5;
+}
+
+// The run's figures on the terminal: whisker-frames by status, latency, read-out and detection
+// times, and the files written.
+void print_whisker_summary(const WhiskerTrackArgs& args, int processed, int whiskers,
+                           const std::string& source, const std::map<std::string, int>& statuses,
+                           std::vector<double>& latencies, std::vector<double>& readout_times,
+                           std::vector<double>& redetect_times, double detect_ms) {
+  std::cout << "sinew-track: " << processed << " frames, " << whiskers << " whiskers from "
+            << source << "\n  whisker-frames:";
+  for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
+  std::cout << "\n  latency per frame (all whiskers): median " << percentile(latencies, 0.5)
+            << " us, p99 " << percentile(latencies, 0.99) << " us; detection " << detect_ms
+            << " ms\n  read-out per frame (mechanics, contact, contact load): median "
+            << percentile(readout_times, 0.5) << " us, p99 " << percentile(readout_times, 0.99)
+            << " us\n";
+  if (!redetect_times.empty()) {
+    std::cout << "  detection again (--redetect " << args.redetect
+              << ", outside the real-time path): " << redetect_times.size() << " frames, median "
+              << percentile(redetect_times, 0.5) << " ms\n";
+  }
+  std::cout << "  results: " << args.out << "\n";
+  if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
+  if (!args.csv.empty()) std::cout << "  table: " << args.csv << "\n";
+  if (!args.hdf5.empty()) std::cout << "  HDF5: " << args.hdf5 << "\n";
+  if (!args.plots.empty()) std::cout << "  plots: " << args.plots << "/whisker_<id>.png\n";
+}
+
+// The session's options from the command line's.
+rt::WhiskerSessionOptions session_options_of(const WhiskerTrackArgs& args) {
   rt::WhiskerSessionOptions session_options;
   session_options.detection.face = parse_face(args.face);
   session_options.detection.min_length_px = args.min_length_px;
@@ -113,6 +294,51 @@ int run_whiskers(const WhiskerTrackArgs& args) {
   } else {
     throw InputError("--redetect " + args.redetect + ": must be every, lost or never");
   }
+  return session_options;
+}
+
+// The read-out's column names (the CSV's, the HDF5 table's, the JSON keys), which carry their
+// units, so that a reader needs no legend: the contact load's in newtons and newton-metres with a
+// scale, else in model units.
+ReadoutKeys readout_keys(bool si) {
+  return {si ? "curvature_per_mm" : "curvature_per_px",
+          si ? "delta_curvature_per_mm" : "delta_curvature_per_px", si ? "m0_N_m" : "m0_model",
+          si ? "_N" : "_model", si ? "_N_m" : "_model"};
+}
+
+std::vector<std::string> value_columns_of(const ReadoutKeys& keys) {
+  return {"follicle_x_px",
+          "follicle_y_px",
+          "tip_x_px",
+          "tip_y_px",
+          "length_px",
+          "base_angle_deg",
+          keys.curvature,
+          keys.delta,
+          keys.moment,
+          "contact",
+          "contact_arc_length_px",
+          "contact_force_x" + keys.force_unit,
+          "contact_force_y" + keys.force_unit,
+          "contact_moment" + keys.torque_unit,
+          "pammer_moment" + keys.torque_unit};
+}
+
+// --csv FILE: the table, written to FILE.tmp (renamed when complete), its header first.
+void open_csv(std::ofstream& csv, const std::string& path,
+              const std::vector<std::string>& value_columns) {
+  csv.open(path + ".tmp");
+  if (!csv) throw InputError(path + ": cannot open file for writing");
+  csv << "frame,id,status";
+  for (const std::string& c : value_columns) csv << "," << c;
+  csv << "\n";
+  csv.precision(9);
+}
+
+}  // namespace
+
+int run_whiskers(const WhiskerTrackArgs& args) {
+  const rt::WhiskerSessionOptions session_options = session_options_of(args);
   rt::WhiskerSession session(session_options);
   FrameSource source(args.input, args.first, args.stride, args.count);
 
@@ -122,36 +348,10 @@ int run_whiskers(const WhiskerTrackArgs& args) {
 
   if (auto err = args.readout.validate()) throw InputError(*err);
   const bool si = args.readout.physics.si();
-  // Column names carry their units, so that a CSV or JSON reader needs no legend.
-  const std::string curvature_key = si ? "curvature_per_mm" : "curvature_per_px";
-  const std::string delta_key = si ? "delta_curvature_per_mm" : "delta_curvature_per_px";
-  const std::string moment_key = si ? "m0_N_m" : "m0_model";
-  // The contact load's: newtons and newton-metres with a scale, else model units.
-  const std::string force_unit = si ? "_N" : "_model", torque_unit = si ? "_N_m" : "_model";
-  const std::vector<std::string> value_columns = {"follicle_x_px",
-                                                  "follicle_y_px",
-                                                  "tip_x_px",
-                                                  "tip_y_px",
-                                                  "length_px",
-                                                  "base_angle_deg",
-                                                  curvature_key,
-                                                  delta_key,
-                                                  moment_key,
-                                                  "contact",
-                                                  "contact_arc_length_px",
-                                                  "contact_force_x" + force_unit,
-                                                  "contact_force_y" + force_unit,
-                                                  "contact_moment" + torque_unit,
-                                                  "pammer_moment" + torque_unit};
+  const ReadoutKeys keys = readout_keys(si);
+  const std::vector<std::string> value_columns = value_columns_of(keys);
   std::ofstream csv;
-  if (!args.csv.empty()) {
-    csv.open(args.csv + ".tmp");
-    if (!csv) throw InputError(args.csv + ": cannot open file for writing");
-    csv << "frame,id,status";
-    for (const std::string& c : value_columns) csv << "," << c;
-    csv << "\n";
-    csv.precision(9);
-  }
+  if (!args.csv.empty()) open_csv(csv, args.csv, value_columns);
   std::unique_ptr<WhiskerHdf5Writer> hdf5;
 
   std::vector<WhiskerSeries> series;
@@ -176,34 +376,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     if (first) {
       const rt::WhiskerDetection& found = session.first_detection();
       detect_ms = session.first_detection_seconds() * 1e3;
-      nlohmann::json record = nlohmann::json::array();
-      for (std::size_t w = 0; w < found.whiskers.size(); ++w) {
-        record.push_back({{"id", w},
-                          {"follicle", point(found.whiskers[w].follicle)},
-                          {"length_px", found.whiskers[w].length_px},
-                          {"contrast_percent", found.whiskers[w].contrast_percent}});
-      }
-      out << nlohmann::json{{"detection",
-                             {{"frame", index},
-                              {"face", rt::to_string(found.face)},
-                              {"backlight", found.backlight},
-                              {"noise_percent", found.noise_percent},
-                              {"seed_contrast", found.seed_contrast},
-                              {"follow_contrast", found.follow_contrast},
-                              {"seconds", detect_ms * 1e-3},
-                              {"whiskers", record},
-                              {"readout",
-                               {{"mm_per_px", args.readout.physics.mm_per_px},
-                                {"young_modulus_gpa", args.readout.physics.young_modulus_gpa},
-                                {"base_radius_um", args.readout.physics.base_radius_um},
-                                {"tip_radius_um", args.readout.physics.tip_radius_um},
-                                {"length_mm", args.readout.physics.length_mm},
-                                {"axis_angle_deg", args.readout.axis_angle_deg},
-                                {"curvature_window_px",
-                                 {args.readout.curvature_from_px,
-                                  args.readout.curvature_to_px}}}}}}}
-                 .dump()
-          << "\n";
+      out << detection_line(found, index, detect_ms, args.readout).dump() << "\n";
       if (!args.quiet) {
         std::cout << "sinew-track: " << found.whiskers.size() << " whiskers found on frame "
                   << index << " (face " << rt::to_string(found.face) << ", ridge noise "
@@ -214,24 +387,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         series.emplace_back();
         series.back().id = w;
       }
-      if (!args.hdf5.empty()) {
-        std::vector<int> nodes;
-        for (int w = 0; w < tracker.num_whiskers(); ++w)
-          nodes.push_back(tracker.whisker(w).num_nodes());
-        hdf5 = std::make_unique<WhiskerHdf5Writer>(args.hdf5, value_columns, nodes);
-        centrelines.resize(nodes.size());
-        hdf5->attribute("source", args.input);
-        hdf5->attribute("units",
-                        si ? "lengths px (follicle, tip, nodes), curvature 1/mm, moment N m"
-                           : "lengths px, curvature 1/px, moment pixel model units");
-        hdf5->attribute(
-            "readout", nlohmann::json{{"mm_per_px", args.readout.physics.mm_per_px},
-                                      {"young_modulus_gpa", args.readout.physics.young_modulus_gpa},
-                                      {"base_radius_um", args.readout.physics.base_radius_um},
-                                      {"tip_radius_um", args.readout.physics.tip_radius_um},
-                                      {"axis_angle_deg", args.readout.axis_angle_deg}}
-                           .dump());
-      }
+      if (!args.hdf5.empty()) hdf5 = open_hdf5(args, tracker, value_columns, si, centrelines);
     }
     const double seconds = session.tracking_seconds();
     latencies.push_back(seconds * 1e6);
@@ -256,92 +412,12 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     for (int w = 0; w < tracker.num_whiskers(); ++w) {
       const rt::Tracker& t = tracker.whisker(w);
       const rt::WhiskerFrame& r = tracker.result(w);
-      nlohmann::json nodes = nlohmann::json::array();
-      for (int i = 0; i < t.num_nodes(); ++i) {
-        const Eigen::Vector2d x = t.node_position(i);
-        nodes.push_back({x.x(), x.y(), t.state()[3 * i + 2]});
-      }
       const std::string status = rt::to_string(r.status);
       ++statuses[status];
-      nlohmann::json record = {{"id", w},
-                               {"status", status},
-                               {"nodes", nodes},
-                               {"follicle", point(r.follicle)},
-                               {"tip", point(r.tip)},
-                               {"length_px", r.length_px},
-                               {"on_neighbour", r.on_neighbour},
-                               {"jumped", r.jumped},
-                               {"reacquired", r.reacquired},
-                               {"inlier_fraction", r.summary.inlier_fraction}};
-      // The read-out of a lost whisker's last state would be stale: none.
-      WhiskerSeries& ts = series[w];
-      ts.frame.push_back(index);
       const double nan = std::numeric_limits<double>::quiet_NaN();
-      ts.base_angle_deg.push_back(nan);
-      ts.delta_curvature.push_back(nan);
-      ts.moment.push_back(nan);
-      ts.contact.push_back(nan);
-      // Nor of a whisker placed on its detection without a fit (not converged): its node
-      // rotations are the detection's chords', not an equilibrium's.
       std::vector<double> values(value_columns.size(), nan);
-      const rt::WhiskerSessionWhisker& sw = session.whisker(w);
-      if (sw.readout) {
-        const rt::WhiskerReadout& q = *sw.readout;
-        ts.base_angle_deg.back() = q.base_angle_deg;
-        ts.delta_curvature.back() = q.delta_curvature;
-        ts.moment.back() = q.moment;
-        record["base_angle_deg"] = q.base_angle_deg;
-        record[curvature_key] = q.curvature;
-        record[delta_key] = q.delta_curvature;
-        record[moment_key] = q.moment;
-        values = {r.follicle.x(),
-                  r.follicle.y(),
-                  r.tip.x(),
-                  r.tip.y(),
-                  r.length_px,
-                  q.base_angle_deg,
-                  q.curvature,
-                  q.delta_curvature,
-                  q.moment,
-                  nan,
-                  nan,
-                  nan,
-                  nan,
-                  nan,
-                  nan};
-        // Contact with a pole or another object the detection of this frame saw.
-        if (sw.contact) {
-          const rt::WhiskerContact& c = *sw.contact;
-          contacts[w] = c;
-          record["contact"] = c.touching;
-          if (std::isfinite(c.distance_px)) record["object_distance_px"] = c.distance_px;
-          values[9] = c.touching ? 1.0 : 0.0;
-          ts.contact.back() = values[9];
-          if (c.touching) {
-            record["contact_arc_length_px"] = c.arc_length_px;
-            record["contact_point"] = point(c.point);
-            values[10] = c.arc_length_px;
-          }
-          if (sw.contact_load) {
-            // Model units (the trackers' section, pixels) until the load is put in SI.
-            const auto& load = *sw.contact_load;
-            if (load.equilibrium) loads[w] = load;  // the overlay draws found loads only
-            largest_force = std::max(largest_force, load.force.norm());
-            largest_moment = std::max(largest_moment, std::abs(load.moment));
-            record["contact_force" + force_unit] = point(load.force);
-            record["contact_moment" + torque_unit] = load.moment;
-            record["contact_load_point"] = point(load.point);
-            record["contact_load_rms_px"] = load.rms_px;
-            record["contact_load_converged"] = load.converged;
-            record["pammer_force" + force_unit] = load.pammer_force;
-            record["pammer_moment" + torque_unit] = load.pammer_moment;
-            values[11] = load.force.x();
-            values[12] = load.force.y();
-            values[13] = load.moment;
-            values[14] = load.pammer_moment;
-          }
-        }
-      }
+      nlohmann::json record = whisker_record(session, w, status, keys, values, series[w], index,
+                                             contacts[w], loads[w], largest_force, largest_moment);
       if (csv.is_open()) {
         csv << index << "," << w << "," << status;
         for (double v : values) {
@@ -403,24 +479,8 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     }
   }
   if (!args.quiet) {
-    std::cout << "sinew-track: " << processed << " frames, " << session.tracker().num_whiskers()
-              << " whiskers from " << source.description() << "\n  whisker-frames:";
-    for (const auto& [k, v] : statuses) std::cout << " " << k << " " << v;
-    std::cout << "\n  latency per frame (all whiskers): median " << percentile(latencies, 0.5)
-              << " us, p99 " << percentile(latencies, 0.99) << " us; detection " << detect_ms
-              << " ms\n  read-out per frame (mechanics, contact, contact load): median "
-              << percentile(readout_times, 0.5) << " us, p99 " << percentile(readout_times, 0.99)
-              << " us\n";
-    if (!redetect_times.empty()) {
-      std::cout << "  detection again (--redetect " << args.redetect
-                << ", outside the real-time path): " << redetect_times.size() << " frames, median "
-                << percentile(redetect_times, 0.5) << " ms\n";
-    }
-    std::cout << "  results: " << args.out << "\n";
-    if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
-    if (!args.csv.empty()) std::cout << "  table: " << args.csv << "\n";
-    if (!args.hdf5.empty()) std::cout << "  HDF5: " << args.hdf5 << "\n";
-    if (!args.plots.empty()) std::cout << "  plots: " << args.plots << "/whisker_<id>.png\n";
+    print_whisker_summary(args, processed, session.tracker().num_whiskers(), source.description(),
+                          statuses, latencies, readout_times, redetect_times, detect_ms);
   }
   return 0;
 }
