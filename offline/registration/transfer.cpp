@@ -11,6 +11,27 @@
 
 namespace sinew::offline {
 namespace fs = std::filesystem;
+namespace {
+
+// An OBJ face line with the normal index of each corner removed ("v/vt/vn" -> "v/vt",
+// "v//vn" -> "v"): the vn lines are dropped, and a reader would find the indices dangling.
+std::string face_without_normals(const std::string& line) {
+  std::string out;
+  std::istringstream corners(line.substr(1));
+  out += 'f';
+  std::string corner;
+  while (corners >> corner) {
+    const std::size_t first = corner.find('/');
+    const std::size_t second = first == std::string::npos ? first : corner.find('/', first + 1);
+    if (second != std::string::npos) corner.erase(second);
+    if (corner.size() == first + 1) corner.erase(first);  // "v/" left of "v//vn"
+    out += ' ';
+    out += corner;
+  }
+  return out;
+}
+
+}  // namespace
 
 long transfer_surface(const std::string& in_path, const std::string& out_path,
                       const PointTransfer& transfer) {
@@ -45,6 +66,9 @@ long transfer_surface(const std::string& in_path, const std::string& out_path,
       }
       const Eigen::Vector3d q = transfer(p, moved++);
       out << "v " << q.x() << " " << q.y() << " " << q.z() << "\n";
+    } else if (line.size() > 2 && line[0] == 'f' &&
+               std::isspace(static_cast<unsigned char>(line[1]))) {
+      out << face_without_normals(line) << "\n";
     } else {
       out << line << "\n";
     }

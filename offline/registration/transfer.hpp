@@ -5,8 +5,8 @@
 ///
 /// OBJ files are rewritten line by line: only the "v x y z" lines change, so texture coordinates
 /// (vt), materials (mtllib, usemtl), groups and faces with their vt indices are kept as they are;
-/// normals (vn) are dropped, since they no longer match. Other formats (.off, .stl, .ply) are read
-/// and written back in their format.
+/// normals (vn) are dropped, since they no longer match, and so are the faces' normal indices.
+/// Other formats (.off, .stl, .ply) are read and written back in their format.
 
 #include <Eigen/Core>
 #include <functional>
