@@ -35,48 +35,11 @@
 #include "offline/linalg/singular_solver.hpp"
 #include "offline/linalg/sparse_cholesky.hpp"
 #include "offline/linalg/woodbury_solver.hpp"
-#include "offline/meshing/surface_closest_point.hpp"
 #include "offline/plastic/plastic_elastic_energy.hpp"
+#include "offline/registration/closest_point.hpp"
 #include "offline/rigid/rigid_stabilisation.hpp"
 
 namespace sinew::offline {
-
-/// Closest point on the deformed boundary surface, embedded in the tet that owns that boundary
-/// face (frozen barycentric coordinates for one ICP iteration). Implemented with a CGAL AABB tree
-/// in offline/meshing/surface_closest_point.hpp; any implementation will do.
-class ClosestSurfacePoint {
- public:
-  virtual ~ClosestSurfacePoint() = default;
-  /// Re-targets the structure to the positions x (3n, vertex-major).
-  virtual void update(const Eigen::Ref<const Eigen::VectorXd>& x) = 0;
-  /// The material point closest to query on the current surface.
-  virtual EmbeddedPoint closest(const Eigen::Vector3d& query) const = 0;
-  /// A unit normal of the current surface at the point closest to query (either orientation);
-  /// zero when the implementation has none (the marker then counts point to point).
-  virtual Eigen::Vector3d normal(const Eigen::Vector3d& /*query*/) const {
-    return Eigen::Vector3d::Zero();
-  }
-};
-
-/// ClosestSurfacePoint on the CGAL AABB tree of offline/meshing/surface_closest_point.hpp.
-class BoundaryClosestPoint final : public ClosestSurfacePoint {
- public:
-  /// surface must outlive this object.
-  explicit BoundaryClosestPoint(SurfaceClosestPoint& surface) : surface_(&surface) {}
-  void update(const Eigen::Ref<const Eigen::VectorXd>& x) override;
-  EmbeddedPoint closest(const Eigen::Vector3d& query) const override {
-    return surface_->query(query).embedded;
-  }
-  /// The surface normal at the closest point, independent of which face holding it the tree
-  /// returned: off the surface the distance's gradient (query − point)/distance, on it the mean
-  /// normal of the faces holding the point (the face's own inside a face).
-  Eigen::Vector3d normal(const Eigen::Vector3d& query) const override;
-
- private:
-  SurfaceClosestPoint* surface_;
-  Eigen::VectorXd x_;                                    // positions of the last update
-  std::vector<std::vector<Eigen::Index>> vertex_faces_;  // boundary faces around each vertex
-};
 
 enum class RegistrationStage {
   kInitialFit,   ///< the constant-s initial guess

@@ -18,8 +18,9 @@
 #include <optional>
 #include <vector>
 
+#include "offline/constraints/constraints.hpp"
 #include "offline/io/surface_mesh_io.hpp"
-#include "offline/registration/gauss_newton.hpp"
+#include "offline/registration/closest_point.hpp"
 #include "offline/registration/surface_distance.hpp"
 
 namespace sinew::offline {
