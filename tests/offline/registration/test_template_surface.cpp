@@ -45,10 +45,10 @@ TEST(TemplateSurfaceClosestPoint, ClosestPointsAreMaterialPointsThatMoveWithTheD
 
   closest.update(rest);
   const EmbeddedPoint below = closest.closest(Eigen::Vector3d(0.2, 0.3, -1.0));
-  EXPECT_LT((sinew::offline::embedded_position(m.tets, below, rest) -
-             Eigen::Vector3d(0.2, 0.3, 0.0))
-                .norm(),
-            1e-12);
+  EXPECT_LT(
+      (sinew::offline::embedded_position(m.tets, below, rest) - Eigen::Vector3d(0.2, 0.3, 0.0))
+          .norm(),
+      1e-12);
   EXPECT_NEAR(std::abs(closest.normal(Eigen::Vector3d(0.2, 0.3, -1.0)).z()), 1.0, 1e-12);
 
   // Stretched 2x along x: the query's closest point on the deformed surface is (0.6, 0.3, 0),
@@ -57,12 +57,12 @@ TEST(TemplateSurfaceClosestPoint, ClosestPointsAreMaterialPointsThatMoveWithTheD
   const Eigen::VectorXd x = m.dofs(F);
   closest.update(x);
   const EmbeddedPoint p = closest.closest(Eigen::Vector3d(0.6, 0.3, -0.5));
-  EXPECT_LT((sinew::offline::embedded_position(m.tets, p, x) - Eigen::Vector3d(0.6, 0.3, 0.0))
-                .norm(),
-            1e-12);
-  EXPECT_LT((sinew::offline::embedded_position(m.tets, p, rest) - Eigen::Vector3d(0.3, 0.3, 0.0))
-                .norm(),
-            1e-12);
+  EXPECT_LT(
+      (sinew::offline::embedded_position(m.tets, p, x) - Eigen::Vector3d(0.6, 0.3, 0.0)).norm(),
+      1e-12);
+  EXPECT_LT(
+      (sinew::offline::embedded_position(m.tets, p, rest) - Eigen::Vector3d(0.3, 0.3, 0.0)).norm(),
+      1e-12);
   // On the slanted face x + y + z = 1, stretched: its normal is that of 0.5x + y + z = 1.
   const Eigen::Vector3d on_face = F * Eigen::Vector3d(0.2, 0.3, 0.5);
   const Eigen::Vector3d n = closest.normal(on_face);

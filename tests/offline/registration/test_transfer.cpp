@@ -25,7 +25,9 @@ std::string read_text(const std::filesystem::path& path) {
 
 const Eigen::Vector3d kShift(10.0, -2.0, 0.5);
 
-Eigen::Vector3d shifted(const Eigen::Vector3d& p, long) { return p + kShift; }
+Eigen::Vector3d shifted(const Eigen::Vector3d& p, long) {
+  return p + kShift;
+}
 
 TEST(Transfer, ObjKeepsTexturesAndMaterialsMovesVerticesDropsNormals) {
   const auto dir = sinew::testing::scratch_dir("test_transfer_obj");
