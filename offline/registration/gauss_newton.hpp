@@ -37,6 +37,7 @@
 #include "offline/linalg/woodbury_solver.hpp"
 #include "offline/plastic/plastic_elastic_energy.hpp"
 #include "offline/registration/closest_point.hpp"
+#include "offline/registration/line_search.hpp"
 #include "offline/rigid/rigid_stabilisation.hpp"
 
 namespace sinew::offline {
@@ -347,16 +348,5 @@ std::optional<ConstraintJacobian> free_constraint_jacobian(
     const RigidStabilisation& stabilisation, const RigidFrame& frame,
     const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
     RigidNullspaceSolver& tangent, std::string* why = nullptr, Eigen::MatrixXd* storage = nullptr);
-
-/// Brent's 1D minimisation of f on [a, b] (golden section + parabolic steps), at most
-/// max_evaluations calls, stopping when the bracket is below tolerance·(b − a). Returns the best
-/// point evaluated and its value. f may return +∞ (treated as a very bad value).
-struct BrentResult {
-  double x = 0.0;
-  double value = 0.0;
-  int evaluations = 0;
-};
-BrentResult brent_minimise(const std::function<double(double)>& f, double a, double b,
-                           double tolerance, int max_evaluations);
 
 }  // namespace sinew::offline
