@@ -1,6 +1,7 @@
 #include "offline/equilibrium/equilibrium.hpp"
 
 #include "offline/detail/ipopt_capture.hpp"
+#include "offline/detail/ipopt_problem.hpp"
 #include "offline/rigid/rigid_motion.hpp"
 
 #include <IpIpoptApplication.hpp>
@@ -216,7 +217,7 @@ std::string EquilibriumSummary::full_report() const {
 
 namespace detail {
 
-class EquilibriumIpoptProblem : public Ipopt::TNLP {
+class EquilibriumIpoptProblem : public UnboundedIpoptProblem {
  public:
   EquilibriumIpoptProblem(EquilibriumSolver* solver, const Eigen::Ref<const Eigen::VectorXd>* s,
                           const Eigen::Ref<const Eigen::VectorXd>* x0)
@@ -232,22 +233,6 @@ class EquilibriumIpoptProblem : public Ipopt::TNLP {
     nnz_jac_g = 0;
     nnz_h_lag = static_cast<Ipopt::Index>(solver_->total_.nonZeros());
     index_style = C_STYLE;
-    return true;
-  }
-
-  bool get_bounds_info(Ipopt::Index n, Ipopt::Number* x_l, Ipopt::Number* x_u, Ipopt::Index,
-                       Ipopt::Number*, Ipopt::Number*) override {
-    // ±1e19 is Ipopt's "no bound" (nlp_lower/upper_bound_inf).
-    std::fill(x_l, x_l + n, -1e19);
-    std::fill(x_u, x_u + n, 1e19);
-    return true;
-  }
-
-  bool get_starting_point(Ipopt::Index n, bool init_x, Ipopt::Number* x, bool init_z,
-                          Ipopt::Number*, Ipopt::Number*, Ipopt::Index, bool init_lambda,
-                          Ipopt::Number*) override {
-    if (!init_x || init_z || init_lambda) return false;
-    Eigen::Map<Eigen::VectorXd>(x, n) = *x0_;
     return true;
   }
 
@@ -309,6 +294,9 @@ class EquilibriumIpoptProblem : public Ipopt::TNLP {
       finalized_ = true;
     }
   }
+
+ protected:
+  Eigen::Ref<const Eigen::VectorXd> start() const override { return *x0_; }
 
  private:
   EquilibriumSolver* solver_;

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "offline/detail/ipopt_capture.hpp"
+#include "offline/detail/ipopt_problem.hpp"
 
 namespace sinew::offline {
 namespace {
@@ -16,7 +17,7 @@ using Clock = std::chrono::steady_clock;
 // Eqs. 18–20 as an Ipopt NLP. Hessian entries: K's upper triangle (as Ipopt's lower triangle),
 // then the lower triangle of the dense stabilisation block over the support dofs (duplicates of
 // K's positions are summed by Ipopt).
-class FreeEquilibriumProblem : public Ipopt::TNLP {
+class FreeEquilibriumProblem : public detail::UnboundedIpoptProblem {
  public:
   FreeEquilibriumProblem(PlasticElasticEnergy& energy, const RigidStabilisation& stabilisation,
                          const RigidFrame& frame, const Eigen::Ref<const Eigen::VectorXd>& s,
@@ -37,23 +38,6 @@ class FreeEquilibriumProblem : public Ipopt::TNLP {
     nnz_jac_g = 6 * d;
     nnz_h_lag = static_cast<Ipopt::Index>(energy_.stiffness().nonZeros()) + d * (d + 1) / 2;
     index_style = C_STYLE;
-    return true;
-  }
-
-  bool get_bounds_info(Ipopt::Index n, Ipopt::Number* x_l, Ipopt::Number* x_u, Ipopt::Index m,
-                       Ipopt::Number* g_l, Ipopt::Number* g_u) override {
-    std::fill(x_l, x_l + n, -1e19);
-    std::fill(x_u, x_u + n, 1e19);
-    std::fill(g_l, g_l + m, 0.0);
-    std::fill(g_u, g_u + m, 0.0);
-    return true;
-  }
-
-  bool get_starting_point(Ipopt::Index n, bool init_x, Ipopt::Number* x, bool init_z,
-                          Ipopt::Number*, Ipopt::Number*, Ipopt::Index, bool init_lambda,
-                          Ipopt::Number*) override {
-    if (!init_x || init_z || init_lambda) return false;
-    Eigen::Map<Eigen::VectorXd>(x, n) = x_final_;
     return true;
   }
 
@@ -150,6 +134,9 @@ class FreeEquilibriumProblem : public Ipopt::TNLP {
       if (xv.allFinite()) x_final_ = xv;
     }
   }
+
+ protected:
+  Eigen::Ref<const Eigen::VectorXd> start() const override { return x_final_; }
 
  private:
   PlasticElasticEnergy& energy_;

@@ -1,0 +1,39 @@
+#pragma once
+/// What the equilibrium solves' Ipopt adapters share (offline/equilibrium): every dof is unbounded,
+/// the constraints (if any) are equalities g(x) = 0, and the solve starts from start().
+
+#include <IpTNLP.hpp>
+
+#include <Eigen/Core>
+#include <algorithm>
+
+namespace sinew::offline::detail {
+
+class UnboundedIpoptProblem : public Ipopt::TNLP {
+ public:
+  bool get_bounds_info(Ipopt::Index n, Ipopt::Number* x_l, Ipopt::Number* x_u, Ipopt::Index m,
+                       Ipopt::Number* g_l, Ipopt::Number* g_u) override {
+    // ±1e19 is Ipopt's "no bound" (nlp_lower/upper_bound_inf).
+    std::fill(x_l, x_l + n, -1e19);
+    std::fill(x_u, x_u + n, 1e19);
+    if (m > 0) {
+      std::fill(g_l, g_l + m, 0.0);
+      std::fill(g_u, g_u + m, 0.0);
+    }
+    return true;
+  }
+
+  bool get_starting_point(Ipopt::Index n, bool init_x, Ipopt::Number* x, bool init_z,
+                          Ipopt::Number*, Ipopt::Number*, Ipopt::Index, bool init_lambda,
+                          Ipopt::Number*) override {
+    if (!init_x || init_z || init_lambda) return false;
+    Eigen::Map<Eigen::VectorXd>(x, n) = start();
+    return true;
+  }
+
+ protected:
+  /// The dofs the solve starts from.
+  virtual Eigen::Ref<const Eigen::VectorXd> start() const = 0;
+};
+
+}  // namespace sinew::offline::detail
