@@ -768,17 +768,15 @@ void align_free_object(Registration& r, const PlasticElasticEnergy& energy_in,
 // inverted tets on the way, directly and, failing that, with the targets moved from where the
 // template has its attachment points to where they belong in first_equilibrium_steps equal steps.
 // Whether an equilibrium was reached.
-bool first_attached_equilibrium(Registration& r, PointConstraints& springs_ref,
-                                EquilibriumSolver& first_solver,
+bool first_attached_equilibrium(Registration& r, PointConstraints& springs,
+                                EquilibriumSolver& first_equilibrium,
                                 const PlasticElasticEnergy& energy_in,
                                 const RegistrationConstraints& constraints,
                                 const GaussNewtonOptions& options) {
-  PointConstraints* springs = &springs_ref;
-  EquilibriumSolver* first_equilibrium = &first_solver;
   const Eigen::VectorXd s0 = r.s;
   r.x = energy_in.rest_dofs();
   ++r.equilibrium_solves;
-  bool reached = first_equilibrium->solve(s0, r.x).converged();
+  bool reached = first_equilibrium.solve(s0, r.x).converged();
   const auto& list = constraints.attachments;
   for (int step_index = 1; !reached && step_index <= options.first_equilibrium_steps;
        ++step_index) {
@@ -790,13 +788,13 @@ bool first_attached_equilibrium(Registration& r, PointConstraints& springs_ref,
       // The last step sets the targets exactly (start + 1·(target − start) may differ from
       // target in the last bit), so that the springs hold no trace of the continuation and a
       // resumed run, which skips it, solves the same equilibria.
-      springs->set_target(static_cast<Eigen::Index>(i),
-                          step_index == options.first_equilibrium_steps
-                              ? list[i].target
-                              : Eigen::Vector3d(start + t * (list[i].target - start)));
+      springs.set_target(static_cast<Eigen::Index>(i),
+                         step_index == options.first_equilibrium_steps
+                             ? list[i].target
+                             : Eigen::Vector3d(start + t * (list[i].target - start)));
     }
     ++r.equilibrium_solves;
-    const bool step_reached = first_equilibrium->solve(s0, r.x).converged();
+    const bool step_reached = first_equilibrium.solve(s0, r.x).converged();
     if (!step_reached) break;
     reached = step_index == options.first_equilibrium_steps;
   }

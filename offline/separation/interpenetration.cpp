@@ -438,16 +438,11 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
   for (Eigen::Index i = 0; i < n; ++i)
     round.x_input.segment<3>(3 * i) = sub.rest.row(i).transpose();
   const double anchor = round.anchor;
-  const auto total = [&](const Eigen::VectorXd& y, Eigen::VectorXd* gradient, bool stiffness) {
-    return round.total(y, gradient, stiffness);
-  };
-  const auto inverted = [&](const Eigen::VectorXd& y) { return round.inverted(y); };
-  const auto contact_hessian = [&](const Eigen::VectorXd& y) { return round.contact_hessian(y); };
 
   SparseCholesky cholesky;
   Eigen::VectorXd gradient(3 * n), step(3 * n), trial(3 * n);
   const double tolerance = options.force_tolerance * material.mu() * h * h;
-  std::optional<double> e = total(x, &gradient, true);
+  std::optional<double> e = round.total(x, &gradient, true);
   if (!e) {
     result.failure = "non-finite energy at the start of the round";
     return result;
@@ -458,7 +453,7 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
     result.newton_iterations = iteration + 1;
     // Stiffness of the free dofs: projected K + anchor + active penalty blocks; the fixed dofs'
     // rows and columns become identity (their step is zero).
-    Eigen::SparseMatrix<double> H = energy->stiffness() + contact_hessian(x);
+    Eigen::SparseMatrix<double> H = energy->stiffness() + round.contact_hessian(x);
     for (Eigen::Index i = 0; i < n; ++i) {
       if (is_free[static_cast<std::size_t>(i)] == 0) continue;
       for (int k = 0; k < 3; ++k) H.coeffRef(3 * i + k, 3 * i + k) += anchor;
@@ -494,8 +489,8 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
     std::optional<double> e_trial;
     for (int k = 0; k < 40; ++k, alpha *= 0.5) {
       trial = x + alpha * step;
-      if (inverted(trial)) continue;
-      e_trial = total(trial, nullptr, false);
+      if (round.inverted(trial)) continue;
+      e_trial = round.total(trial, nullptr, false);
       if (!e_trial) continue;
       const double slack = kEnergyRoundoff * (std::abs(*e) + std::abs(*e_trial));
       if (*e_trial <= *e + 1e-4 * alpha * slope + slack) {
@@ -510,7 +505,7 @@ RoundResult solve_round(TetMesh& a, TetMesh& b, const TetMesh& rest_a, const Tet
       break;
     }
     x = trial;
-    e = total(x, &gradient, true);
+    e = round.total(x, &gradient, true);
     if (!e) {
       result.failure = "non-finite energy";
       return result;
