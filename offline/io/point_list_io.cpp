@@ -10,6 +10,7 @@
 #include <new>
 #include <utility>
 
+#include "common/detail/json_error.hpp"
 #include "offline/io/io_common.hpp"
 
 namespace sinew::offline::io {
@@ -336,19 +337,6 @@ class JsonLocator {
   std::string_view t_;
 };
 
-std::string line_column(std::string_view text, std::size_t offset) {
-  std::size_t line = 1, column = 1;
-  for (std::size_t i = 0; i < std::min(offset, text.size()); ++i) {
-    if (text[i] == '\n') {
-      ++line;
-      column = 1;
-    } else {
-      ++column;
-    }
-  }
-  return std::to_string(line) + ":" + std::to_string(column);
-}
-
 JsonDocument read_json(const std::string& path) {
   JsonDocument doc;
   doc.file = path;
@@ -356,18 +344,9 @@ JsonDocument read_json(const std::string& path) {
   try {
     doc.root = Json::parse(doc.text);
   } catch (const Json::parse_error& e) {
-    std::string what = e.what();
-    // Keep nlohmann's explanation, drop its "[json.exception.parse_error.101] ... column C: ".
-    const auto column_at = what.find("column ");
-    const auto colon = what.find(": ", column_at == std::string::npos ? 0 : column_at);
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    fail(path + ":" + line_column(doc.text, e.byte > 0 ? e.byte - 1 : 0) +
-         ": invalid JSON: " + what);
+    fail(common::detail::json_syntax_error(path, doc.text, e.what(), e.byte));
   } catch (const Json::exception& e) {
-    std::string what = e.what();  // e.g. number overflow: nlohmann reports no position
-    const auto bracket = what.find("] ");
-    if (bracket != std::string::npos) what = what.substr(bracket + 2);
-    fail(path + ": invalid JSON: " + what);
+    fail(common::detail::json_value_error(path, doc.text, e.what()));
   }
   return doc;
 }
@@ -402,7 +381,8 @@ class Node {
   }
   [[noreturn]] void fail_here(const std::string& what) const {
     const std::size_t offset = JsonLocator(doc_->text).find(path_);
-    fail(doc_->file + ":" + line_column(doc_->text, offset) + ": " + name() + ": " + what);
+    fail(doc_->file + ":" + common::detail::line_column(doc_->text, offset) + ": " + name() + ": " +
+         what);
   }
   std::string string() const {
     if (!value_->is_string()) fail_here("must be a string");

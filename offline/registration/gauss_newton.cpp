@@ -1,21 +1,15 @@
 #include "offline/registration/gauss_newton.hpp"
 
-#include "offline/detail/column_blocks.hpp"
-#include "offline/detail/huge_pages.hpp"
-
 #include <nlopt.hpp>
 
 #include <Eigen/Geometry>
-#include <Eigen/LU>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <utility>
 
-#include "common/detail/field_error.hpp"
 #include "common/timing.hpp"
 #include "offline/plastic/plastic_strain.hpp"
 #include "offline/plastic/plastic_strain_laplacian.hpp"
@@ -28,10 +22,6 @@ using Clock = std::chrono::steady_clock;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 using common::seconds_since;
-
-std::string invalid(const char* field, double value, const char* constraint) {
-  return common::detail::field_error("", field, value, constraint);
-}
 
 // Rest positions (#V by 3) from the 3n dof vector.
 Eigen::MatrixXd rest_matrix(const PlasticElasticEnergy& energy) {
@@ -411,253 +401,6 @@ double constant_fit_objective(unsigned n, const double* a, double* /*gradient*/,
 
 namespace {
 
-// The weighted constraint rows [√c_k A_k] (r x 3n, sparse) and the residual [√c_k (A_k x + b_k)].
-struct WeightedRows {
-  Eigen::SparseMatrix<double> rows;
-  Eigen::VectorXd residual;
-};
-
-WeightedRows weighted_rows(const PointConstraints& terms,
-                           const Eigen::Ref<const Eigen::VectorXd>& x) {
-  const Eigen::Index r = 3 * terms.size();
-  WeightedRows result;
-  Eigen::VectorXd sqrt_c(r);
-  result.residual.resize(r);
-  for (Eigen::Index k = 0; k < terms.size(); ++k) {
-    const double root = std::sqrt(terms.weight(k));
-    sqrt_c.segment<3>(3 * k).setConstant(root);
-    result.residual.segment<3>(3 * k) = root * terms.residual(k, x);
-  }
-  result.rows = sqrt_c.asDiagonal() * terms.stacked_selection();
-  return result;
-}
-
-// Zᵀ = −(∂f/∂s)ᵀ W, one column of W at a time: Eigen's row-major sparse × dense product walks
-// rows of W (stride 3n) for all r columns at once, which is cache-hostile when W is 3n x 900.
-// Columns are independent: blocks of them go to the available threads. Zᵀ (6m x r, 1.3 GB at
-// 30k tets and 900 rows) is backed by huge pages.
-Eigen::MatrixXd z_transposed(const Eigen::SparseMatrix<double>& force_jacobian,
-                             const Eigen::MatrixXd& W, Eigen::MatrixXd* storage) {
-  Eigen::MatrixXd Zt;
-  if (storage != nullptr && storage->rows() == force_jacobian.cols() &&
-      storage->cols() == W.cols()) {
-    Zt = std::move(*storage);
-  } else {
-    Zt = detail::large_matrix(force_jacobian.cols(), W.cols());
-  }
-  detail::for_each_column_block(W.cols(), 8, detail::available_threads(),
-                                [&](int /*thread*/, Eigen::Index first, Eigen::Index k) {
-                                  for (Eigen::Index j = first; j < first + k; ++j) {
-                                    Zt.col(j).noalias() = -(force_jacobian.transpose() * W.col(j));
-                                  }
-                                });
-  return Zt;
-}
-
-bool evaluate_tangent(PlasticElasticEnergy& energy, const Eigen::Ref<const Eigen::VectorXd>& s,
-                      const Eigen::Ref<const Eigen::VectorXd>& x, std::string* why) {
-  PlasticEnergyRequest request;
-  request.energy = false;
-  request.stiffness = true;
-  request.force_jacobian = true;
-  const PlasticEvaluation evaluation = energy.evaluate(s, x, request);
-  if (!evaluation.valid() && why != nullptr) *why = "tangent stiffness: " + evaluation.message();
-  return evaluation.valid();
-}
-
-}  // namespace
-
-std::optional<ConstraintJacobian> constraint_jacobian(
-    PlasticElasticEnergy& energy, const PointConstraints& springs, const PointConstraints& terms,
-    const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
-    SparseCholesky& tangent, std::string* why, Eigen::MatrixXd* storage) {
-  auto fail = [&](const std::string& message) -> std::optional<ConstraintJacobian> {
-    if (why != nullptr) *why = message;
-    return std::nullopt;
-  };
-  if (!evaluate_tangent(energy, s, x, why)) return std::nullopt;
-  // ∂f_net/∂x = K + Σ_attachments c A_kᵀA_k.
-  const Eigen::SparseMatrix<double> tangent_stiffness = energy.stiffness() + springs.hessian();
-  SparseCholeskyStatus status = tangent.analysed() ? tangent.factorise(tangent_stiffness)
-                                                   : SparseCholeskyStatus::kPatternMismatch;
-  if (status == SparseCholeskyStatus::kPatternMismatch) status = tangent.compute(tangent_stiffness);
-  if (status != SparseCholeskyStatus::kOk) {
-    return fail(std::string("tangent stiffness at the equilibrium: ") + to_string(status));
-  }
-  // Z = −(√c A) K⁻¹ ∂f/∂s (eq. 12), through W = K⁻¹ (√c A)ᵀ (3n x 3K, one block solve): the
-  // paper's "∂f_net/∂x z̃_k = −√c_k A_kᵀ", J never formed.
-  WeightedRows rows = weighted_rows(terms, x);
-  const Eigen::MatrixXd rhs = Eigen::MatrixXd(rows.rows.transpose());
-  Eigen::MatrixXd W = detail::large_matrix(rhs.rows(), rhs.cols());
-  if (tangent.solve_in_blocks(rhs, W) != SparseCholeskyStatus::kOk) {
-    return fail("tangent solve failed");
-  }
-  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W, storage),
-                            std::move(rows.residual)};
-}
-
-std::optional<ConstraintJacobian> free_constraint_jacobian(
-    PlasticElasticEnergy& energy, const PointConstraints& terms,
-    const RigidStabilisation& stabilisation, const RigidFrame& frame,
-    const Eigen::Ref<const Eigen::VectorXd>& s, const Eigen::Ref<const Eigen::VectorXd>& x,
-    RigidNullspaceSolver& tangent, std::string* why, Eigen::MatrixXd* storage) {
-  auto fail = [&](const std::string& message) -> std::optional<ConstraintJacobian> {
-    if (why != nullptr) *why = message;
-    return std::nullopt;
-  };
-  if (!evaluate_tangent(energy, s, x, why)) return std::nullopt;
-  const SparseCholeskyStatus status = tangent.factorise(energy.stiffness(), x);
-  if (status != SparseCholeskyStatus::kOk) {
-    return fail(std::string("pinned tangent stiffness at the free equilibrium: ") +
-                to_string(status));
-  }
-  StabilisationJacobian G;
-  if (!stabilisation.jacobian(x, frame, G)) {
-    return fail("stabilisation constraints: the marker points' covariance is singular or mirrored");
-  }
-  // The equilibrium moves with s as dx = P·K⁺(−∂f/∂s ds): K⁺ by the Singular Lemma (ii), and
-  // P = I − Ψ(GΨ)⁻¹G adds the rigid motion that keeps eqs. 19–20 satisfied (G dx = 0). So
-  // Zᵀ = −(∂f/∂s)ᵀ K⁺ Pᵀ(√c A)ᵀ, and Pᵀ(√c A)ᵀ lies in the range of K (Ψᵀ Pᵀ = (PΨ)ᵀ = 0).
-  const Eigen::Matrix<double, Eigen::Dynamic, 6> psi = rigid_motion_basis(x, false);
-  const Eigen::Matrix<double, 6, 6> G_psi = G * psi;
-  Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(G_psi);
-  if (!lu.isInvertible()) return fail("stabilisation constraints do not fix the rigid motions");
-  WeightedRows rows = weighted_rows(terms, x);
-  Eigen::MatrixXd rhs = Eigen::MatrixXd(rows.rows.transpose());
-  const Eigen::MatrixXd psi_t_rhs = psi.transpose() * rhs;  // 6 x r
-  rhs.noalias() -= G.transpose() * G_psi.transpose().fullPivLu().solve(psi_t_rhs);
-  Eigen::MatrixXd W;
-  if (tangent.solve(rhs, W) != SparseCholeskyStatus::kOk) return fail("tangent solve failed");
-  return ConstraintJacobian{z_transposed(energy.force_jacobian(), W, storage),
-                            std::move(rows.residual)};
-}
-
-const char* to_string(RegistrationStage stage) {
-  switch (stage) {
-    case RegistrationStage::kInitialFit:
-      return "initial-fit";
-    case RegistrationStage::kAttachments:
-      return "attachments";
-    case RegistrationStage::kLandmarks:
-      return "landmarks";
-    case RegistrationStage::kIcpMarkers:
-      return "icp";
-  }
-  return "unknown";
-}
-
-const char* to_string(GaussNewtonTermination termination) {
-  switch (termination) {
-    case GaussNewtonTermination::kMaxIterations:
-      return "max-iterations";
-    case GaussNewtonTermination::kMarkerTolerance:
-      return "marker-tolerance";
-    case GaussNewtonTermination::kSmallStep:
-      return "small-step";
-    case GaussNewtonTermination::kSmallDecrease:
-      return "small-decrease";
-    case GaussNewtonTermination::kLineSearchFailed:
-      return "line-search-failed";
-    case GaussNewtonTermination::kEquilibriumFailed:
-      return "equilibrium-failed";
-    case GaussNewtonTermination::kLinearSolveFailed:
-      return "linear-solve-failed";
-    case GaussNewtonTermination::kInvalidInput:
-      return "invalid-input";
-  }
-  return "unknown";
-}
-
-std::optional<std::string> GaussNewtonOptions::validate() const {
-  if (!(alpha > 0.0 && std::isfinite(alpha))) return invalid("alpha", alpha, "must be > 0");
-  if (!(beta >= 0.0 && std::isfinite(beta))) return invalid("beta", beta, "must be >= 0");
-  if (max_iterations_per_stage < 0) {
-    return invalid("max_iterations_per_stage", max_iterations_per_stage, "must be >= 0");
-  }
-  if (!(max_marker_error >= 0.0)) {
-    return invalid("max_marker_error", max_marker_error, "must be >= 0");
-  }
-  for (std::size_t i = 0; i < icp_weight_ramp.size(); ++i) {
-    const double f = icp_weight_ramp[i];
-    if (!(f > 0.0 && f <= 1.0)) {
-      const std::string field = "icp_weight_ramp[" + std::to_string(i) + "]";
-      return invalid(field.c_str(), f, "must be in (0, 1]");
-    }
-  }
-  if (icp_point_to_plane_iterations < 0) {
-    return invalid("icp_point_to_plane_iterations", icp_point_to_plane_iterations, "must be >= 0");
-  }
-  if (icp_no_progress_iterations < 0) {
-    return invalid("icp_no_progress_iterations", icp_no_progress_iterations, "must be >= 0");
-  }
-  if (!(min_step >= 0.0 && min_step < 1.0))
-    return invalid("min_step", min_step, "must be in [0, 1)");
-  if (!(max_step > 0.0 && max_step <= 4.0)) {
-    return invalid("max_step", max_step, "must be in (0, 4]");
-  }
-  if (!(relative_decrease_tolerance >= 0.0 && relative_decrease_tolerance < 1.0)) {
-    return invalid("relative_decrease_tolerance", relative_decrease_tolerance, "must be in [0, 1)");
-  }
-  if (!(full_step_acceptance >= 0.0 && full_step_acceptance <= 1.0)) {
-    return invalid("full_step_acceptance", full_step_acceptance, "must be in [0, 1]");
-  }
-  if (line_search_evaluations < 3) {
-    return invalid("line_search_evaluations", line_search_evaluations, "must be >= 3");
-  }
-  if (!(line_search_tolerance > 0.0 && line_search_tolerance < 0.5)) {
-    return invalid("line_search_tolerance", line_search_tolerance, "must be in (0, 0.5)");
-  }
-  if (first_equilibrium_steps < 1) {
-    return invalid("first_equilibrium_steps", first_equilibrium_steps, "must be >= 1");
-  }
-  if (initial_fit_evaluations < 10) {
-    return invalid("initial_fit_evaluations", initial_fit_evaluations, "must be >= 10");
-  }
-  if (!(nullspace_damping >= 0.0 && std::isfinite(nullspace_damping))) {
-    return invalid("nullspace_damping", nullspace_damping, "must be >= 0");
-  }
-  if (!(attachment_stage_damping_floor >= 0.0 && std::isfinite(attachment_stage_damping_floor))) {
-    return invalid("attachment_stage_damping_floor", attachment_stage_damping_floor,
-                   "must be >= 0");
-  }
-  if (!(eigenvalue_floor > 0.0 && std::isfinite(eigenvalue_floor))) {
-    return invalid("eigenvalue_floor", eigenvalue_floor, "must be > 0");
-  }
-  if (damped_step_trials < 0 || damped_step_trials > 100)
-    return invalid("damped_step_trials", damped_step_trials, "must be in [0, 100]");
-  if (!(damping_start > 0.0 && std::isfinite(damping_start)))
-    return invalid("damping_start", damping_start, "must be > 0");
-  if (!(damping_growth > 1.0 && std::isfinite(damping_growth)))
-    return invalid("damping_growth", damping_growth, "must be > 1");
-  if (auto message = equilibrium.validate()) return "equilibrium." + *message;
-  if (auto message = woodbury.validate()) return "woodbury." + *message;
-  return std::nullopt;
-}
-
-std::string GaussNewtonSummary::brief_report() const {
-  std::ostringstream out;
-  out << "Gauss-Newton: " << to_string(termination) << ", " << iterations.size()
-      << " iterations, objective " << initial_objective << " -> " << final_objective
-      << ", marker error mean " << marker_error_mean << " max " << marker_error_max << ", "
-      << equilibrium_solves << " equilibrium solves, " << seconds << " s";
-  if (!message.empty()) out << " (" << message << ")";
-  return out.str();
-}
-
-std::string GaussNewtonSummary::full_report() const {
-  std::ostringstream out;
-  out << brief_report() << "\n";
-  out << "stage        it  objective      step    err_mean     err_max      solves  seconds\n";
-  for (const GaussNewtonIteration& it : iterations) {
-    out << to_string(it.stage) << "  " << it.iteration << "  " << it.objective << "  " << it.step
-        << "  " << it.marker_error_mean << "  " << it.marker_error_max << "  "
-        << it.equilibrium_solves << "  " << it.seconds << "\n";
-  }
-  return out.str();
-}
-
-namespace {
-
 // The inputs run_registration cannot use, as its message; std::nullopt when all are usable.
 std::optional<std::string> invalid_registration_input(const PlasticElasticEnergy& energy_in,
                                                       const RegistrationConstraints& constraints,
@@ -701,19 +444,6 @@ std::optional<std::string> invalid_registration_input(const PlasticElasticEnergy
     }
   }
   return std::nullopt;
-}
-
-// The stages a registration runs, in order (§4): the attachments (an attached object), the
-// landmarks (unless they join the ICP stage), the ICP markers.
-std::vector<RegistrationStage> registration_stages(const RegistrationConstraints& constraints,
-                                                   const GaussNewtonOptions& options, bool free) {
-  std::vector<RegistrationStage> stages;
-  if (!free) stages.push_back(RegistrationStage::kAttachments);
-  if (!constraints.landmarks.empty() &&
-      (options.landmark_stage || constraints.icp_markers.empty() || !options.icp_stage_landmarks))
-    stages.push_back(RegistrationStage::kLandmarks);
-  if (!constraints.icp_markers.empty()) stages.push_back(RegistrationStage::kIcpMarkers);
-  return stages;
 }
 
 // A checkpoint's state taken up: where to go on (the stage index, stages.size() when all are done,

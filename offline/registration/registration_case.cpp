@@ -14,4 +14,11 @@ const char* to_string(LengthUnit unit) {
   return "";
 }
 
+TetMesherOptions registration_mesh_options() {
+  TetMesherOptions o;
+  o.cell_size_fraction = 0.08;
+  o.tets_across_thickness = 4;
+  return o;
+}
+
 }  // namespace sinew::offline

@@ -89,6 +89,11 @@ struct RegistrationStop {
   int no_progress_iterations = 3;
 };
 
+/// The mesher's options for a registration template: cells of 0.08 of the diagonal (a night's
+/// run at most) and thin parts 4 tets across, so that a bend can vary the plastic strain across
+/// them (a vertebra's processes; docs/registration.md, "Real bones": 3 and 5 were measured too).
+TetMesherOptions registration_mesh_options();
+
 struct RegistrationCase {
   std::string case_path;      ///< as given on the command line
   std::string template_path;  ///< resolved against the case file's folder
@@ -96,35 +101,30 @@ struct RegistrationCase {
   LengthUnit units = LengthUnit::kUnspecified;
   struct Solver {
     /// GaussNewtonOptions::damped_step_trials ("solver": {"damped_step_trials": N}).
-    /// Default 4 (μ up to 1e3 of the smoothness term): without it the ICP stage on real
-    /// vertebrae (issue 18) clamped 10–18% of the tets per step and stalled.
+    /// Default 4 (μ up to 1e3 of the smoothness term): real bones' ICP steps stall without it.
     int damped_step_trials = 4;
     /// GaussNewtonOptions::predictor_warm_start; default true.
     bool predictor_warm_start = true;
     /// GaussNewtonOptions::hold_clamped_tets ("solver": {"hold_clamped_tets": B}).
-    /// Default true, with the thickness-sized mesh (mesh.tets_across_thickness 4) and the
-    /// no-progress stop: the three vertebrae 0.756 / 0.541 / 0.569 mm, the gluteus medius 0.67 /
-    /// 0.49 mm (markers 0.042 mm mean), the femur pair 0.164 mm (vertex mean), every ICP stage
-    /// ending by the marker tolerance. On the uniform mesh it made the gluteus medius drift
-    /// (markers 0.10-0.16 mm mean over ICP iterations 14-30).
+    /// Default true, with the thickness-sized mesh and the no-progress stop (the three together
+    /// end every real case's ICP stage by the marker tolerance).
     bool hold_clamped_tets = true;
-    /// GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01). With 0.01
-    /// the vertebrae met their markers by squashing tets 100-fold, and sub-verse023's ICP stage
-    /// stalled at 0.46 mm mean (3.5 mm max) marker error: no step was found whose equilibrium
-    /// inverted no tet. 0.1 stalled the same way; with 0.2 sub-verse018 and 023 end by a
-    /// convergence test, 013 at the iteration limit (docs/registration.md).
+    /// GaussNewtonOptions::eigenvalue_floor; default 0.2 (the paper: 0.01): with a lower
+    /// floor real bones meet their markers by squashing tets and the ICP stage stalls.
     double eigenvalue_floor = 0.2;
     /// Sparse Cholesky method of every factorisation ("solver": {"cholesky": "auto" |
     /// "simplicial" | "supernodal"}; SparseCholeskyMethod). Simplicial has no BLAS, so
     /// the run is the same with every OpenBLAS kernel and thread count (tests/tools/
     /// register_stability_sweep.sh); supernodal is much faster on large meshes but its result
-    /// depends on the CPU (sub-verse013: 0.837 mm with the SkylakeX kernels, 0.797 with
-    /// Haswell's). Default auto: simplicial up to 1e6 nonzeros in the factor (meshes up to about
-    /// 8k tets, the vertebrae included), supernodal above; "simplicial" makes a large mesh
-    /// reproducible too, at 7-16x the factorisation time (21k-49k tets).
+    /// depends on the CPU's BLAS kernels. Default auto: simplicial up to 1e6 nonzeros in the
+    /// factor (meshes up to about 8k tets), supernodal above; "simplicial" makes a large mesh
+    /// reproducible too, at several times the factorisation time.
     SparseCholeskyMethod cholesky = SparseCholeskyMethod::kAuto;
   } solver;
-  TetMesherOptions mesh;  ///< the tool's defaults overridden by "mesh"
+  /// How a surface template is tet-meshed ("mesh" in a case file overrides these):
+  /// registration_mesh_options(), a little coarser than the mesher's general default and sized
+  /// by the local thickness.
+  TetMesherOptions mesh = registration_mesh_options();
   bool mesh_options_given = false;
   PointPairSet attachments;
   PointPairSet landmarks;          ///< empty when absent

@@ -1,5 +1,7 @@
 #include "tools/io/json_file.hpp"
 
+#include "common/detail/json_error.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -15,48 +17,12 @@ nlohmann::json read_json_file(const std::string& path) {
   std::ostringstream buffer;
   buffer << in.rdbuf();
   const std::string text = buffer.str();
-  // "path:line:column" of a byte offset.
-  const auto position = [&](std::size_t offset) {
-    std::size_t line = 1, column = 1;
-    for (std::size_t i = 0; i < std::min(offset, text.size()); ++i) {
-      if (text[i] == '\n') {
-        ++line;
-        column = 1;
-      } else {
-        ++column;
-      }
-    }
-    return path + ":" + std::to_string(line) + ":" + std::to_string(column);
-  };
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
-    std::string what = e.what();
-    // Drop nlohmann's "[json.exception...] parse error at line L, column C: " prefix.
-    const auto column_at = what.find("column ");
-    const auto colon = what.find(": ", column_at == std::string::npos ? 0 : column_at);
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    throw InputError(position(e.byte > 0 ? e.byte - 1 : 0) + ": invalid JSON: " + what);
+    throw InputError(common::detail::json_syntax_error(path, text, e.what(), e.byte));
   } catch (const nlohmann::json::exception& e) {
-    // e.g. out_of_range.406 "number overflow parsing '1e400'": no position is reported, so the
-    // quoted token's first occurrence as a whole number in the text gives it.
-    std::string what = e.what();
-    const auto bracket = what.find("] ");
-    if (bracket != std::string::npos) what = what.substr(bracket + 2);
-    const auto open = what.find('\''), close = what.rfind('\'');
-    if (open != std::string::npos && close > open + 1) {
-      const std::string token = what.substr(open + 1, close - open - 1);
-      const auto part_of_number = [](char c) {
-        return std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '+';
-      };
-      for (auto at = text.find(token); at != std::string::npos; at = text.find(token, at + 1)) {
-        const std::size_t after = at + token.size();
-        if ((at == 0 || !part_of_number(text[at - 1])) &&
-            (after >= text.size() || !part_of_number(text[after])))
-          throw InputError(position(at) + ": invalid JSON: " + what + " (not a finite double)");
-      }
-    }
-    throw InputError(path + ": invalid JSON: " + what);
+    throw InputError(common::detail::json_value_error(path, text, e.what()));
   }
 }
 

@@ -34,6 +34,7 @@
 #include "offline/io/volume_image_io.hpp"
 #include "offline/meshing/label_image.hpp"
 #include "offline/meshing/surface_closest_point.hpp"
+#include "tools/io/json_file.hpp"
 #include "tools/label/slice_pictures.hpp"
 
 namespace {
@@ -41,9 +42,7 @@ namespace {
 namespace fs = std::filesystem;
 using sinew::offline::io::VolumeImage;
 
-struct InputError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using sinew::tools::InputError;
 
 VolumeImage read_image(const std::string& path) {
   auto r = sinew::offline::io::read_volume_image(path);

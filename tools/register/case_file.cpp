@@ -239,11 +239,6 @@ RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::s
     }
   }
 
-  // The tool's own default is a little coarser than the mesher's: a night's run at most.
-  c.mesh.cell_size_fraction = 0.08;
-  // Thin parts (a vertebra's processes) 4 tets across, so that a bend can vary the plastic
-  // strain across them (issue 18; docs/registration.md, "Real bones": 3 and 5 measured too).
-  c.mesh.tets_across_thickness = 4;
   if (root.has("mesh")) {
     if (c.template_is_tet_mesh) {
       root.at("mesh").fail("applies to surface templates only (" + c.template_path +

@@ -171,7 +171,7 @@ TEST(PointListIo, JsonErrorsHaveLineAndColumn) {
   expect_error(read_points("n.json", "[[1, 2, 3],\n [4, \"5\", 6]]"),
                "n.json:2:6: ", "[1][1]: must be a number");
   expect_error(read_points("o.json", "[[1, 2, 3],\n [4, 5 6]]"), "o.json:2:8: ", "invalid JSON");
-  expect_error(read_points("p.json", "[[1, 2, 1e999]]"), "p.json: ", "invalid JSON");
+  expect_error(read_points("p.json", "[[1, 2, 1e999]]"), "p.json:1:9: ", "invalid JSON");
   expect_error(read_points("q.json", "{\"coordinateSystem\": \"IJK\", \"points\": [[1,2,3]]}"),
                "q.json:1:22: ", "unsupported coordinate system 'IJK'");
   expect_error(read_points("r.json", "{\"pts\": []}"), "r.json:1:1: ", "expected \"points\"");
