@@ -221,10 +221,7 @@ class EquilibriumIpoptProblem : public UnboundedIpoptProblem {
  public:
   EquilibriumIpoptProblem(EquilibriumSolver* solver, const Eigen::Ref<const Eigen::VectorXd>* s,
                           const Eigen::Ref<const Eigen::VectorXd>* x0)
-      : solver_(solver), s_(s), x0_(x0), x_final_(*x0) {}
-
-  const Eigen::VectorXd& x_final() const { return x_final_; }
-  bool finalized() const { return finalized_; }
+      : UnboundedIpoptProblem(*x0), solver_(solver), s_(s), x0_(x0) {}
 
   bool get_nlp_info(Ipopt::Index& n, Ipopt::Index& m, Ipopt::Index& nnz_jac_g,
                     Ipopt::Index& nnz_h_lag, IndexStyleEnum& index_style) override {
@@ -285,16 +282,6 @@ class EquilibriumIpoptProblem : public UnboundedIpoptProblem {
     return true;
   }
 
-  void finalize_solution(Ipopt::SolverReturn, Ipopt::Index n, const Ipopt::Number* x,
-                         const Ipopt::Number*, const Ipopt::Number*, Ipopt::Index,
-                         const Ipopt::Number*, const Ipopt::Number*, Ipopt::Number,
-                         const Ipopt::IpoptData*, Ipopt::IpoptCalculatedQuantities*) override {
-    if (x != nullptr && n == x_final_.size()) {
-      x_final_ = Eigen::Map<const Eigen::VectorXd>(x, n);
-      finalized_ = true;
-    }
-  }
-
  protected:
   Eigen::Ref<const Eigen::VectorXd> start() const override { return *x0_; }
 
@@ -302,8 +289,6 @@ class EquilibriumIpoptProblem : public UnboundedIpoptProblem {
   EquilibriumSolver* solver_;
   const Eigen::Ref<const Eigen::VectorXd>* s_;
   const Eigen::Ref<const Eigen::VectorXd>* x0_;
-  Eigen::VectorXd x_final_;
-  bool finalized_ = false;
 };
 
 }  // namespace detail

@@ -22,13 +22,16 @@ class FreeEquilibriumProblem : public detail::UnboundedIpoptProblem {
   FreeEquilibriumProblem(PlasticElasticEnergy& energy, const RigidStabilisation& stabilisation,
                          const RigidFrame& frame, const Eigen::Ref<const Eigen::VectorXd>& s,
                          const Eigen::VectorXd& x0)
-      : energy_(energy), stabilisation_(stabilisation), frame_(frame), s_(s), x_final_(x0) {
+      : UnboundedIpoptProblem(x0),
+        energy_(energy),
+        stabilisation_(stabilisation),
+        frame_(frame),
+        s_(s),
+        x_start_(x0) {
     for (Eigen::Index v : stabilisation.support_vertices()) {
       for (int c = 0; c < 3; ++c) support_dofs_.push_back(3 * v + c);
     }
   }
-
-  const Eigen::VectorXd& x_final() const { return x_final_; }
 
   bool get_nlp_info(Ipopt::Index& n, Ipopt::Index& m, Ipopt::Index& nnz_jac_g,
                     Ipopt::Index& nnz_h_lag, IndexStyleEnum& index_style) override {
@@ -125,25 +128,15 @@ class FreeEquilibriumProblem : public detail::UnboundedIpoptProblem {
     return true;
   }
 
-  void finalize_solution(Ipopt::SolverReturn, Ipopt::Index n, const Ipopt::Number* x,
-                         const Ipopt::Number*, const Ipopt::Number*, Ipopt::Index,
-                         const Ipopt::Number*, const Ipopt::Number*, Ipopt::Number,
-                         const Ipopt::IpoptData*, Ipopt::IpoptCalculatedQuantities*) override {
-    if (x != nullptr && n == x_final_.size()) {
-      const Eigen::Map<const Eigen::VectorXd> xv(x, n);
-      if (xv.allFinite()) x_final_ = xv;
-    }
-  }
-
  protected:
-  Eigen::Ref<const Eigen::VectorXd> start() const override { return x_final_; }
+  Eigen::Ref<const Eigen::VectorXd> start() const override { return x_start_; }
 
  private:
   PlasticElasticEnergy& energy_;
   const RigidStabilisation& stabilisation_;
   RigidFrame frame_;
   Eigen::Ref<const Eigen::VectorXd> s_;
-  Eigen::VectorXd x_final_;
+  Eigen::VectorXd x_start_;
   std::vector<Eigen::Index> support_dofs_;
 };
 
