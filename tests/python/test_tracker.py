@@ -45,6 +45,29 @@ def test_same_nodes_and_forces_as_sinew_track(sequence):
     assert want["status"] == "ok"
 
 
+def test_the_demo_sequence_gives_sinew_tracks_nodes(tmp_path):
+    """scripts/demo's own sequence (the same sinew-synth arguments: a thick cantilever, 40
+    frames, clutter and an occluder), tracked by sinew-track and by sinew.Tracker frame by frame."""
+    subprocess.run([os.path.join(BIN, "sinew-synth"), "--scenario", "cantilever", "--thickness",
+                    "thick", "--frames", "40", "--lambda-max", "5", "--noise", "8", "--clutter",
+                    "12", "--occluder", "12:15", "--out", str(tmp_path)],
+                   check=True, capture_output=True)
+    results = tmp_path / "results.jsonl"
+    subprocess.run([os.path.join(BIN, "sinew-track"), "--input",
+                    str(tmp_path / "frames/f_%04d.png"), "--init", str(tmp_path / "init.json"),
+                    "--out", str(results)], check=True, capture_output=True)
+    expected = [line for line in map(json.loads, open(results)) if "nodes" in line]
+    assert len(expected) == 40
+    tracker = sinew.Tracker(str(tmp_path / "init.json"))
+    worst = 0.0
+    for k, want in enumerate(expected):
+        frame = cv2.imread(str(tmp_path / f"frames/f_{k:04d}.png"), cv2.IMREAD_GRAYSCALE)
+        got = tracker.track(frame)
+        assert got["status"] == want["status"], k
+        worst = max(worst, float(np.abs(got["nodes"] - np.asarray(want["nodes"])).max()))
+    assert worst <= 1e-9
+
+
 def test_a_dict_init_is_the_file(sequence):
     out, expected, frames = sequence
     tracker = sinew.Tracker(json.load(open(out / "init.json")))
