@@ -34,16 +34,18 @@ using namespace sinew;
 
 namespace {
 
-// A dict or a JSON file as nlohmann::json.
-nlohmann::json json_of(const py::object& source, const char* caller, std::string* name) {
+// parse(document, name) on a JSON file (errors with the value's line and column) or a dict
+// (named "<dict>").
+template <class Parse>
+auto parse_source(const py::object& source, const char* caller, Parse parse) {
   if (py::isinstance<py::str>(source)) {
-    *name = source.cast<std::string>();
-    return tools::read_json_file(*name);
+    const std::string name = source.cast<std::string>();
+    return tools::parse_json_file(name,
+                                  [&](const nlohmann::json& doc) { return parse(doc, name); });
   }
   if (py::isinstance<py::dict>(source)) {
-    *name = "<dict>";
     const std::string text = py::module_::import("json").attr("dumps")(source).cast<std::string>();
-    return nlohmann::json::parse(text);
+    return parse(nlohmann::json::parse(text), std::string("<dict>"));
   }
   throw py::type_error(std::string(caller) + ": a path to a JSON file or a dict");
 }
@@ -92,9 +94,7 @@ class PyTracker {
   explicit PyTracker(const py::object& init) {
     tools::TrackInit parsed;
     try {
-      std::string name;
-      const nlohmann::json doc = json_of(init, "Tracker(init)", &name);
-      parsed = tools::parse_track_init(doc, name);
+      parsed = parse_source(init, "Tracker(init)", tools::parse_track_init);
     } catch (const tools::InputError& e) {
       throw py::value_error(e.what());
     }
@@ -190,13 +190,11 @@ py::dict register_case(const py::object& source, const std::optional<std::string
                        std::optional<int> max_iterations, bool quiet) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point run_start = Clock::now();
-  std::string name;
   offline::RegistrationCase c;
   tools::ScanImages scan;
   const tools::Log log(quiet);
   try {
-    const nlohmann::json doc = json_of(source, "register(case)", &name);
-    c = tools::parse_registration_case(doc, name);
+    c = parse_source(source, "register(case)", tools::parse_registration_case);
     if (out_dir) scan = tools::read_scan_images(c, log);
   } catch (const tools::InputError& e) {
     throw py::value_error(e.what());
@@ -221,7 +219,7 @@ py::dict register_case(const py::object& source, const std::optional<std::string
     throw py::value_error(e.what());
   }
   const Clock::time_point writing_start = Clock::now();
-  nlohmann::json report = tools::registration_report(c, r, name, 0);
+  nlohmann::json report = tools::registration_report(c, r, c.case_path, 0);
   std::vector<std::string> written;
   if (out) {
     written = tools::write_result_files(*out, c, r, scan, report, log);
@@ -370,9 +368,7 @@ class PyWhiskers {
 py::dict simulate(const py::object& beam) {
   std::optional<tools::SimulationCase> parsed;
   try {
-    std::string name;
-    const nlohmann::json doc = json_of(beam, "simulate(beam)", &name);
-    parsed.emplace(tools::parse_simulation(doc, name));
+    parsed.emplace(parse_source(beam, "simulate(beam)", tools::parse_simulation));
   } catch (const tools::InputError& e) {
     throw py::value_error(e.what());
   }

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace sinew::common::detail {
 
@@ -59,5 +60,104 @@ inline std::string json_value_error(const std::string& path, std::string_view te
   }
   return path + ": invalid JSON: " + what;
 }
+
+/// One step of a path into a JSON document: an object key or an array index.
+struct JsonPathStep {
+  bool is_key = false;
+  std::string key;
+  std::size_t index = 0;
+};
+
+/// Finds the byte offset of the value at a JSON path by scanning the text of a document that has
+/// already been parsed (so it is valid): for "file:line:column: path: what" about a value.
+class JsonLocator {
+ public:
+  explicit JsonLocator(std::string_view text) : t_(text) {}
+
+  std::size_t find(const std::vector<JsonPathStep>& path) const {
+    std::size_t p = skip_ws(0);
+    for (const auto& step : path) {
+      if (p >= t_.size()) return p;
+      if (step.is_key && t_[p] == '{') {
+        p = skip_ws(p + 1);
+        while (p < t_.size() && t_[p] == '"') {
+          const std::size_t key_end = skip_string(p);
+          const bool match = decode_key(t_.substr(p, key_end - p)) == step.key;
+          p = skip_ws(skip_ws(key_end) + 1);  // after ':'
+          if (match) break;
+          p = skip_ws(skip_value(p));
+          if (p < t_.size() && t_[p] == ',') p = skip_ws(p + 1);
+        }
+      } else if (!step.is_key && t_[p] == '[') {
+        p = skip_ws(p + 1);
+        for (std::size_t i = 0; i < step.index && p < t_.size(); ++i) {
+          p = skip_ws(skip_value(p));
+          if (p < t_.size() && t_[p] == ',') p = skip_ws(p + 1);
+        }
+      } else {
+        return p;
+      }
+    }
+    return p;
+  }
+
+ private:
+  // A key's text between its quotes with the common escapes decoded (\uXXXX is left as written:
+  // such a key is not matched, and the position falls back to its object).
+  static std::string decode_key(std::string_view raw) {
+    std::string key;
+    for (std::size_t i = 1; i + 1 < raw.size(); ++i) {
+      char c = raw[i];
+      if (c == '\\' && i + 2 < raw.size()) {
+        const char e = raw[++i];
+        c = e == 'n'   ? '\n'
+            : e == 't' ? '\t'
+            : e == 'r' ? '\r'
+            : e == 'b' ? '\b'
+            : e == 'f' ? '\f'
+                       : e;
+        if (e == 'u') key += '\\';
+      }
+      key += c;
+    }
+    return key;
+  }
+  std::size_t skip_ws(std::size_t p) const {
+    while (p < t_.size() && (t_[p] == ' ' || t_[p] == '\t' || t_[p] == '\n' || t_[p] == '\r')) ++p;
+    return p;
+  }
+  std::size_t skip_string(std::size_t p) const {  // p at the opening quote
+    for (++p; p < t_.size(); ++p) {
+      if (t_[p] == '\\')
+        ++p;
+      else if (t_[p] == '"')
+        return p + 1;
+    }
+    return p;
+  }
+  std::size_t skip_value(std::size_t p) const {
+    if (p >= t_.size()) return p;
+    if (t_[p] == '"') return skip_string(p);
+    if (t_[p] == '{' || t_[p] == '[') {
+      int depth = 0;
+      for (; p < t_.size(); ++p) {
+        if (t_[p] == '"') {
+          p = skip_string(p) - 1;
+        } else if (t_[p] == '{' || t_[p] == '[') {
+          ++depth;
+        } else if (t_[p] == '}' || t_[p] == ']') {
+          if (--depth == 0) return p + 1;
+        }
+      }
+      return p;
+    }
+    while (p < t_.size() && t_[p] != ',' && t_[p] != ']' && t_[p] != '}' && t_[p] != ' ' &&
+           t_[p] != '\n' && t_[p] != '\r' && t_[p] != '\t')
+      ++p;
+    return p;
+  }
+
+  std::string_view t_;
+};
 
 }  // namespace sinew::common::detail

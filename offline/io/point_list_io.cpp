@@ -252,91 +252,6 @@ struct JsonDocument {
   Json root;
 };
 
-struct PathStep {
-  bool is_key = false;
-  std::string key;
-  std::size_t index = 0;
-};
-
-/// Finds the byte offset of the value at a JSON path by scanning the (already validated) text.
-class JsonLocator {
- public:
-  explicit JsonLocator(std::string_view text) : t_(text) {}
-
-  std::size_t find(const std::vector<PathStep>& path) const {
-    std::size_t p = skip_ws(0);
-    for (const auto& step : path) {
-      if (p >= t_.size()) return p;
-      if (step.is_key && t_[p] == '{') {
-        p = skip_ws(p + 1);
-        while (p < t_.size() && t_[p] == '"') {
-          const std::size_t key_end = skip_string(p);
-          const bool match = decode_key(t_.substr(p, key_end - p)) == step.key;
-          p = skip_ws(skip_ws(key_end) + 1);  // after ':'
-          if (match) break;
-          p = skip_ws(skip_value(p));
-          if (p < t_.size() && t_[p] == ',') p = skip_ws(p + 1);
-        }
-      } else if (!step.is_key && t_[p] == '[') {
-        p = skip_ws(p + 1);
-        for (std::size_t i = 0; i < step.index && p < t_.size(); ++i) {
-          p = skip_ws(skip_value(p));
-          if (p < t_.size() && t_[p] == ',') p = skip_ws(p + 1);
-        }
-      } else {
-        return p;
-      }
-    }
-    return p;
-  }
-
- private:
-  static std::string decode_key(std::string_view raw) {
-    if (raw.find('\\') == std::string_view::npos) return std::string(raw.substr(1, raw.size() - 2));
-    try {
-      return Json::parse(raw).get<std::string>();
-    } catch (const std::exception&) {
-      return std::string();
-    }
-  }
-  std::size_t skip_ws(std::size_t p) const {
-    while (p < t_.size() && (t_[p] == ' ' || t_[p] == '\t' || t_[p] == '\n' || t_[p] == '\r')) ++p;
-    return p;
-  }
-  std::size_t skip_string(std::size_t p) const {  // p at the opening quote
-    for (++p; p < t_.size(); ++p) {
-      if (t_[p] == '\\')
-        ++p;
-      else if (t_[p] == '"')
-        return p + 1;
-    }
-    return p;
-  }
-  std::size_t skip_value(std::size_t p) const {
-    if (p >= t_.size()) return p;
-    if (t_[p] == '"') return skip_string(p);
-    if (t_[p] == '{' || t_[p] == '[') {
-      int depth = 0;
-      for (; p < t_.size(); ++p) {
-        if (t_[p] == '"') {
-          p = skip_string(p) - 1;
-        } else if (t_[p] == '{' || t_[p] == '[') {
-          ++depth;
-        } else if (t_[p] == '}' || t_[p] == ']') {
-          if (--depth == 0) return p + 1;
-        }
-      }
-      return p;
-    }
-    while (p < t_.size() && t_[p] != ',' && t_[p] != ']' && t_[p] != '}' && t_[p] != ' ' &&
-           t_[p] != '\n' && t_[p] != '\r' && t_[p] != '\t')
-      ++p;
-    return p;
-  }
-
-  std::string_view t_;
-};
-
 JsonDocument read_json(const std::string& path) {
   JsonDocument doc;
   doc.file = path;
@@ -354,7 +269,7 @@ JsonDocument read_json(const std::string& path) {
 /// A value inside a JsonDocument that knows its path, for "file:line:col: path what".
 class Node {
  public:
-  Node(const JsonDocument& doc, const Json& value, std::vector<PathStep> path)
+  Node(const JsonDocument& doc, const Json& value, std::vector<common::detail::JsonPathStep> path)
       : doc_(&doc), value_(&value), path_(std::move(path)) {}
 
   const Json& value() const { return *value_; }
@@ -380,7 +295,7 @@ class Node {
     return s.empty() ? "document" : s;
   }
   [[noreturn]] void fail_here(const std::string& what) const {
-    const std::size_t offset = JsonLocator(doc_->text).find(path_);
+    const std::size_t offset = common::detail::JsonLocator(doc_->text).find(path_);
     fail(doc_->file + ":" + common::detail::line_column(doc_->text, offset) + ": " + name() + ": " +
          what);
   }
@@ -418,7 +333,7 @@ class Node {
  private:
   const JsonDocument* doc_;
   const Json* value_;
-  std::vector<PathStep> path_;
+  std::vector<common::detail::JsonPathStep> path_;
 };
 
 CoordinateSystem json_system(const Node& node) {

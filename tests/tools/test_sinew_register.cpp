@@ -493,12 +493,12 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
       {"empty_icp_marker_list",
        with([](auto& j) { j["icp_markers"] = nlohmann::json::array(); }),
        {},
-       "case.json: icp_markers is empty",
+       "case.json:16:17: icp_markers is empty",
        "case.json"},
       {"empty_attachment_list",
        with([](auto& j) { j["attachments"] = nlohmann::json::array(); }),
        {},
-       "case.json: attachments is empty",
+       "case.json:2:17: attachments is empty",
        "case.json"},
       {"empty_marker_file",
        with([](auto& j) { j["icp_markers"] = "markers.csv"; }),
@@ -525,7 +525,7 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
          j["weights"] = {{"alhpa", 1e5}};
        }),
        {},
-       "case.json: unknown key 'alhpa' in weights (expected one of: alpha, beta, "
+       "case.json:28:12: unknown key 'alhpa' in weights (expected one of: alpha, beta, "
        "attachment_stiffness, icp_weight_ramp, icp_point_to_plane_iterations, icp_stage_landmarks, "
        "landmark_stage)",
        "case.json"},
@@ -541,21 +541,21 @@ TEST(SinewRegister, BadInputGivesOneLineErrorAndNoOutput) {
          j["scan_image"] = {{"slices", 3}};
        }),
        {},
-       "case.json: scan_image needs \"image\"",
+       "case.json:26:16: scan_image needs \"image\"",
        "case.json"},
       {"ramp_factor_out_of_range",
        with([](auto& j) {
          j["weights"] = {{"icp_weight_ramp", {0.01, 2.0}}};
        }),
        {},
-       "case.json: weights.icp_weight_ramp[1] = 2 must be in (0, 1]",
+       "case.json:30:4: weights.icp_weight_ramp[1] = 2 must be in (0, 1]",
        "case.json"},
       {"point_to_plane_iterations_negative",
        with([](auto& j) {
          j["weights"] = {{"icp_point_to_plane_iterations", -1}};
        }),
        {},
-       "case.json: weights.icp_point_to_plane_iterations = -1 must be in [0, 100000]",
+       "case.json:28:36: weights.icp_point_to_plane_iterations = -1 must be in [0, 100000]",
        "case.json"},
       {"far_attachment",
        with([](auto& j) {
@@ -687,9 +687,9 @@ TEST(SinewRegister, BatchRunsEveryCaseAndContinuesPastAFailure) {
   EXPECT_NE(r.out.find("[0] registered"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("[2] registered"), std::string::npos) << r.out;
   // stderr: the bad case's own one-line error, then the batch's line about it.
-  EXPECT_NE(
-      r.err.find((f.dir / "cases" / "bad" / "case.json").string() + ": unknown key 'icp_marker'"),
-      std::string::npos)
+  EXPECT_NE(r.err.find((f.dir / "cases" / "bad" / "case.json").string() +
+                       ":112:16: unknown key 'icp_marker'"),
+            std::string::npos)
       << r.err;
   EXPECT_NE(r.err.find(f.manifest.string() + ": case 1 (" +
                        (f.dir / "cases" / "bad" / "case.json").string() + "): bad input (exit 2)"),
@@ -756,17 +756,17 @@ TEST(SinewRegister, BadBatchManifestIsAnInputError) {
   };
   const std::vector<Bad> cases = {
       {"unknown_key", nlohmann::json{{"cases", {one}}, {"jobs", 2}}.dump(),
-       "batch.json: unknown key 'jobs' (expected one of: cases)"},
+       "batch.json:1:56: unknown key 'jobs' (expected one of: cases)"},
       {"unknown_case_key",
        nlohmann::json{{"cases", {{{"case", "a.json"}, {"out", "o"}, {"outt", "p"}}}}}.dump(),
-       "batch.json: unknown key 'outt' in cases[0] (expected one of: case, out, truth)"},
+       "batch.json:1:45: unknown key 'outt' in cases[0] (expected one of: case, out, truth)"},
       {"missing_out", nlohmann::json{{"cases", {{{"case", "a.json"}}}}}.dump(),
-       "batch.json: missing required field 'cases[0].out'"},
+       "batch.json:1:11: missing required field 'cases[0].out'"},
       {"empty", nlohmann::json{{"cases", nlohmann::json::array()}}.dump(),
-       "batch.json: cases is empty"},
+       "batch.json:1:10: cases is empty"},
       {"same_output",
        nlohmann::json{{"cases", {one, {{"case", "b/case.json"}, {"out", "out/./a"}}}}}.dump(),
-       "batch.json: cases[1].out = \"out/./a\" is also the output folder of cases[0]"},
+       "batch.json:1:76: cases[1].out = \"out/./a\" is also the output folder of cases[0]"},
       {"malformed", "{\"cases\": [\n", "batch.json:2:1: invalid JSON"},
       {"missing", "", "batch.json: cannot open file for reading"},
   };

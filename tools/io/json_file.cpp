@@ -11,19 +11,30 @@
 
 namespace sinew::tools {
 
-nlohmann::json read_json_file(const std::string& path) {
+JsonFile read_json_text(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open file for reading");
   std::ostringstream buffer;
   buffer << in.rdbuf();
-  const std::string text = buffer.str();
+  JsonFile file;
+  file.text = buffer.str();
   try {
-    return nlohmann::json::parse(text);
+    file.root = nlohmann::json::parse(file.text);
   } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(common::detail::json_syntax_error(path, text, e.what(), e.byte));
+    throw InputError(common::detail::json_syntax_error(path, file.text, e.what(), e.byte));
   } catch (const nlohmann::json::exception& e) {
-    throw InputError(common::detail::json_value_error(path, text, e.what()));
+    throw InputError(common::detail::json_value_error(path, file.text, e.what()));
   }
+  return file;
+}
+
+nlohmann::json read_json_file(const std::string& path) {
+  return read_json_text(path).root;
+}
+
+std::string JsonValueError::located(std::string_view text) const {
+  const std::size_t offset = common::detail::JsonLocator(text).find(steps_);
+  return file_ + ":" + common::detail::line_column(text, offset) + ": " + message_;
 }
 
 void write_json_file(const std::string& path, const nlohmann::json& value, int indent) {
@@ -45,20 +56,30 @@ bool JsonCursor::has(const std::string& key) const {
   return value_->is_object() && value_->contains(key);
 }
 
+JsonCursor::JsonCursor(const JsonCursor& parent, const nlohmann::json& value,
+                       common::detail::JsonPathStep step)
+    : value_(&value), file_(parent.file_), steps_(parent.steps_) {
+  path_ = step.is_key ? (parent.path_.empty() ? step.key : parent.path_ + "." + step.key)
+                      : parent.path_ + "[" + std::to_string(step.index) + "]";
+  steps_.push_back(std::move(step));
+}
+
 JsonCursor JsonCursor::at(const std::string& key) const {
   if (!value_->is_object()) fail("must be an object");
-  const std::string child = path_.empty() ? key : path_ + "." + key;
   const auto it = value_->find(key);
   if (it == value_->end()) {
-    throw InputError(file_ + ": missing required field '" + child + "'");
+    // Located at the object that lacks it.
+    throw JsonValueError(
+        file_, steps_,
+        "missing required field '" + (path_.empty() ? key : path_ + "." + key) + "'");
   }
-  return JsonCursor(*it, file_, child);
+  return JsonCursor(*this, *it, {true, key, 0});
 }
 
 JsonCursor JsonCursor::at(std::size_t i) const {
   if (!value_->is_array()) fail("must be an array");
   if (i >= value_->size()) fail("has no element " + std::to_string(i));
-  return JsonCursor((*value_)[i], file_, path_ + "[" + std::to_string(i) + "]");
+  return JsonCursor(*this, (*value_)[i], {false, std::string(), i});
 }
 
 std::size_t JsonCursor::array_size() const {
@@ -107,14 +128,18 @@ void JsonCursor::expect_keys(const std::vector<std::string>& allowed) const {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
       const std::string where = path_.empty() ? "" : " in " + path_;
-      throw InputError(file_ + ": unknown key '" + item.key() + "'" + where +
-                       " (expected one of: " + list + ")");
+      // Located at the unknown key's value.
+      std::vector<common::detail::JsonPathStep> at = steps_;
+      at.push_back({true, item.key(), 0});
+      throw JsonValueError(
+          file_, std::move(at),
+          "unknown key '" + item.key() + "'" + where + " (expected one of: " + list + ")");
     }
   }
 }
 
 void JsonCursor::fail(const std::string& what) const {
-  throw InputError(file_ + ": " + (path_.empty() ? "document" : path_) + " " + what);
+  throw JsonValueError(file_, steps_, (path_.empty() ? "document" : path_) + " " + what);
 }
 
 }  // namespace sinew::tools

@@ -97,7 +97,11 @@ CaseOutcome run_isolated(const BatchCase& c, const BatchCaseRunner& run_case) {
 }  // namespace
 
 BatchManifest read_batch_manifest(const std::string& path) {
-  const nlohmann::json doc = read_json_file(path);
+  return parse_json_file(
+      path, [&](const nlohmann::json& doc) { return parse_batch_manifest(doc, path); });
+}
+
+BatchManifest parse_batch_manifest(const nlohmann::json& doc, const std::string& path) {
   const JsonCursor root(doc, path);
   root.expect_keys({"cases"});
   const JsonCursor cases = root.at("cases");

@@ -23,6 +23,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -42,9 +43,11 @@ struct BatchManifest {
 };
 
 /// Reads and validates a manifest. Throws InputError (tools/io/json_file.hpp), one line naming the
-/// file and the field ("batch.json: cases[2].out ..."). The case files are not opened here: a
-/// missing one fails its own case only.
+/// file, the line and column and the field ("batch.json:4:12: cases[2].out ..."). The case files
+/// are not opened here: a missing one fails its own case only.
 BatchManifest read_batch_manifest(const std::string& path);
+/// The same for a parsed document; path names it and resolves the cases' relative names.
+BatchManifest parse_batch_manifest(const nlohmann::json& doc, const std::string& path);
 
 /// The case to run alone: `task` (--task) when given, else SLURM_ARRAY_TASK_ID (`slurm_task`, null
 /// when unset), else std::nullopt (all cases). Throws InputError when the value is not a

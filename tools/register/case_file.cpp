@@ -216,7 +216,8 @@ bool is_tet_mesh_path(const std::string& path) {
 }
 
 RegistrationCase read_registration_case(const std::string& path) {
-  return parse_registration_case(read_json_file(path), path);
+  return parse_json_file(
+      path, [&](const nlohmann::json& doc) { return parse_registration_case(doc, path); });
 }
 
 RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::string& path) {

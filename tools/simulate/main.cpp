@@ -18,8 +18,9 @@ namespace {
 using namespace sinew;
 
 int run(const std::string& beam_path, const std::string& out_path, bool quiet) {
-  const tools::SimulationCase c =
-      tools::parse_simulation(tools::read_json_file(beam_path), beam_path);
+  const tools::SimulationCase c = tools::parse_json_file(beam_path, [&](const nlohmann::json& doc) {
+    return tools::parse_simulation(doc, beam_path);
+  });
   const common::BeamModel& model = c.model;
   const tools::SimulationResult result = tools::simulate(c);
   const Eigen::VectorXd& u = result.u;

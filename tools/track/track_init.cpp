@@ -7,7 +7,8 @@
 namespace sinew::tools {
 
 TrackInit read_track_init(const std::string& path) {
-  return parse_track_init(read_json_file(path), path);
+  return parse_json_file(path,
+                         [&](const nlohmann::json& doc) { return parse_track_init(doc, path); });
 }
 
 TrackInit parse_track_init(const nlohmann::json& doc, const std::string& path) {
