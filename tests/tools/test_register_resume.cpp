@@ -442,7 +442,7 @@ TEST(RegisterResume, ResumeWithoutACheckpointOrAgainstAnotherCaseIsAOneLineError
   write_text(killed / "checkpoint.sinew", "{\"format\": \"something else\"}\n");
   one_line_error("--resume " + killed.string(),
                  checkpoint_path +
-                     ": format is not 'sinew-register checkpoint' (not a sinew-register "
+                     ":1:12: format is not 'sinew-register checkpoint' (not a sinew-register "
                      "checkpoint, or a damaged one)");
 
   // The original checkpoint, unchanged case: resumes to the end.

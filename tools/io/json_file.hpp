@@ -30,6 +30,10 @@ class JsonValueError : public InputError {
         steps_(std::move(steps)),
         message_(std::move(message)) {}
   std::string located(std::string_view text) const;
+  /// The same error with `more` added to its message.
+  JsonValueError appended(const std::string& more) const {
+    return JsonValueError(file_, steps_, message_ + more);
+  }
 
  private:
   std::string file_;

@@ -35,63 +35,36 @@ constexpr GaussNewtonTermination kTerminations[] = {
     GaussNewtonTermination::kLineSearchFailed,  GaussNewtonTermination::kEquilibriumFailed,
     GaussNewtonTermination::kLinearSolveFailed, GaussNewtonTermination::kInvalidInput};
 
-// Reads one checkpoint's fields; every failure names the file and the field.
-class Reader {
- public:
-  explicit Reader(std::string file) : file_(std::move(file)) {}
+// A checkpoint's values, read through JsonCursor (every failure names the file, the line and
+// column and the field). Doubles are hex-float strings, exact to the bit.
+double hex_real(const JsonCursor& c) {
+  if (!c.value().is_string()) c.fail("is not a hex-float string");
+  const std::string text = c.value().get<std::string>();
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size()) c.fail("= '" + text + "' is bad");
+  return value;
+}
 
-  [[noreturn]] void fail(const std::string& field, const std::string& what) const {
-    throw InputError(file_ + ": " + field + " " + what +
-                     " (not a sinew-register checkpoint, or a damaged one)");
-  }
-  const nlohmann::json& at(const nlohmann::json& j, const std::string& key,
-                           const std::string& where) const {
-    if (!j.is_object() || !j.contains(key)) fail(where + key, "is missing");
-    return j.at(key);
-  }
-  double real(const nlohmann::json& j, const std::string& field) const {
-    if (!j.is_string()) fail(field, "is not a hex-float string");
-    const std::string text = j.get<std::string>();
-    char* end = nullptr;
-    const double value = std::strtod(text.c_str(), &end);
-    if (text.empty() || end != text.c_str() + text.size()) fail(field, "= '" + text + "' is bad");
-    return value;
-  }
-  long integer(const nlohmann::json& j, const std::string& field) const {
-    if (!j.is_number_integer()) fail(field, "is not an integer");
-    return j.get<long>();
-  }
-  bool boolean(const nlohmann::json& j, const std::string& field) const {
-    if (!j.is_boolean()) fail(field, "is not a boolean");
-    return j.get<bool>();
-  }
-  std::string string(const nlohmann::json& j, const std::string& field) const {
-    if (!j.is_string()) fail(field, "is not a string");
-    return j.get<std::string>();
-  }
-  Eigen::VectorXd vector(const nlohmann::json& j, const std::string& field) const {
-    if (!j.is_array()) fail(field, "is not an array");
-    Eigen::VectorXd v(static_cast<Eigen::Index>(j.size()));
-    for (std::size_t i = 0; i < j.size(); ++i)
-      v[static_cast<Eigen::Index>(i)] = real(j[i], field + "[" + std::to_string(i) + "]");
-    return v;
-  }
-  RegistrationStage stage(const nlohmann::json& j, const std::string& field) const {
-    const std::string name = string(j, field);
-    for (RegistrationStage s : kStages)
-      if (name == offline::to_string(s)) return s;
-    fail(field, "= '" + name + "' is not a stage");
-  }
-  GaussNewtonTermination termination(const nlohmann::json& j, const std::string& field) const {
-    const std::string name = string(j, field);
-    for (GaussNewtonTermination t : kTerminations)
-      if (name == offline::to_string(t)) return t;
-    fail(field, "= '" + name + "' is not a termination");
-  }
+Eigen::VectorXd hex_vector(const JsonCursor& c) {
+  Eigen::VectorXd v(static_cast<Eigen::Index>(c.array_size()));
+  for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = hex_real(c.at(static_cast<std::size_t>(i)));
+  return v;
+}
 
- private:
-  std::string file_;
-};
+RegistrationStage stage(const JsonCursor& c) {
+  const std::string name = c.string();
+  for (RegistrationStage s : kStages)
+    if (name == offline::to_string(s)) return s;
+  c.fail("= '" + name + "' is not a stage");
+}
+
+GaussNewtonTermination termination(const JsonCursor& c) {
+  const std::string name = c.string();
+  for (GaussNewtonTermination t : kTerminations)
+    if (name == offline::to_string(t)) return t;
+  c.fail("= '" + name + "' is not a termination");
+}
 
 nlohmann::json vector_json(const Eigen::VectorXd& v) {
   nlohmann::json out = nlohmann::json::array();
@@ -118,28 +91,23 @@ nlohmann::json iteration_json(const GaussNewtonIteration& it) {
           {"seconds", hex_double(it.seconds)}};
 }
 
-GaussNewtonIteration read_iteration(const Reader& r, const nlohmann::json& j,
-                                    const std::string& where) {
+GaussNewtonIteration read_iteration(const JsonCursor& j) {
   GaussNewtonIteration it;
-  const auto real = [&](const char* key) { return r.real(r.at(j, key, where), where + key); };
-  it.stage = r.stage(r.at(j, "stage", where), where + "stage");
-  it.iteration = static_cast<int>(r.integer(r.at(j, "iteration", where), where + "iteration"));
+  const auto real = [&](const char* key) { return hex_real(j.at(key)); };
+  it.stage = stage(j.at("stage"));
+  it.iteration = static_cast<int>(j.at("iteration").integer());
   it.objective = real("objective");
   it.objective_before = real("objective_before");
   it.predicted_decrease = real("predicted_decrease");
   it.step = real("step");
   it.marker_error_mean = real("marker_error_mean");
   it.marker_error_max = real("marker_error_max");
-  it.equilibrium_solves = static_cast<int>(
-      r.integer(r.at(j, "equilibrium_solves", where), where + "equilibrium_solves"));
-  it.clamped_tets =
-      static_cast<int>(r.integer(r.at(j, "clamped_tets", where), where + "clamped_tets"));
+  it.equilibrium_solves = static_cast<int>(j.at("equilibrium_solves").integer());
+  it.clamped_tets = static_cast<int>(j.at("clamped_tets").integer());
   // Absent in checkpoints written before the projected-search fallback existed.
-  if (j.contains("projected_search")) {
-    it.projected_search = r.boolean(j.at("projected_search"), where + "projected_search");
-  }
+  if (j.has("projected_search")) it.projected_search = j.at("projected_search").boolean();
   // Absent in checkpoints written before the damped steps existed (undamped).
-  if (j.contains("damping")) it.damping = real("damping");
+  if (j.has("damping")) it.damping = real("damping");
   it.jacobian_seconds = real("jacobian_seconds");
   it.woodbury_seconds = real("woodbury_seconds");
   it.line_search_seconds = real("line_search_seconds");
@@ -246,45 +214,55 @@ RegisterCheckpoint read_checkpoint(const fs::path& path) {
                      ": no checkpoint to resume from (the run finished, see report.json, or "
                      "this is not a sinew-register output folder)");
   }
-  const nlohmann::json j = read_json_file(path.string());
-  const Reader r(path.string());
-  if (!j.is_object() || !j.contains("format") || j["format"] != kFormat)
-    r.fail("format", "is not '" + std::string(kFormat) + "'");
-  if (r.integer(r.at(j, "version", ""), "version") != kVersion)
-    r.fail("version", "is not " + std::to_string(kVersion));
-  RegisterCheckpoint c;
-  c.case_path = r.string(r.at(j, "case", ""), "case");
-  c.case_file = r.string(r.at(j, "case_file", ""), "case_file");
-  c.truth_path = r.string(r.at(j, "truth", ""), "truth");
-  c.truth_file = r.string(r.at(j, "truth_file", ""), "truth_file");
-  const nlohmann::json& max_iterations = r.at(j, "max_iterations", "");
-  if (!max_iterations.is_null())
-    c.max_iterations = static_cast<int>(r.integer(max_iterations, "max_iterations"));
-  c.resumes = static_cast<int>(r.integer(r.at(j, "resumes", ""), "resumes"));
-  c.identification = r.at(j, "identification", "");
-  if (!c.identification.is_object()) r.fail("identification", "is not an object");
-  const nlohmann::json& state = r.at(j, "state", "");
-  if (state.is_null()) return c;
-  offline::GaussNewtonCheckpoint s;
-  const std::string w = "state.";
-  s.free_object = r.boolean(r.at(state, "free_object", w), w + "free_object");
-  const nlohmann::json& next_stage = r.at(state, "next_stage", w);
-  if (!next_stage.is_null()) s.next_stage = r.stage(next_stage, w + "next_stage");
-  s.next_iteration =
-      static_cast<int>(r.integer(r.at(state, "next_iteration", w), w + "next_iteration"));
-  s.termination = r.termination(r.at(state, "termination", w), w + "termination");
-  s.initial_objective = r.real(r.at(state, "initial_objective", w), w + "initial_objective");
-  s.equilibrium_solves =
-      static_cast<int>(r.integer(r.at(state, "equilibrium_solves", w), w + "equilibrium_solves"));
-  s.seconds = r.real(r.at(state, "seconds", w), w + "seconds");
-  const nlohmann::json& iterations = r.at(state, "iterations", w);
-  if (!iterations.is_array()) r.fail(w + "iterations", "is not an array");
-  for (std::size_t i = 0; i < iterations.size(); ++i) {
-    s.iterations.push_back(
-        read_iteration(r, iterations[i], w + "iterations[" + std::to_string(i) + "]."));
+  const std::string file = path.string();
+  return parse_json_file(file, [&](const nlohmann::json& j) {
+    try {
+      return parse_checkpoint(j, file);
+    } catch (const JsonValueError& e) {
+      throw e.appended(" (not a sinew-register checkpoint, or a damaged one)");
+    }
+  });
+}
+
+RegisterCheckpoint parse_checkpoint(const nlohmann::json& j, const std::string& file) {
+  const JsonCursor root(j, file);
+  if (!j.is_object() || !j.contains("format") || j["format"] != kFormat) {
+    (j.is_object() && j.contains("format") ? root.at("format") : root)
+        .fail("is not '" + std::string(kFormat) + "'");
   }
-  s.s = r.vector(r.at(state, "s", w), w + "s");
-  s.x = r.vector(r.at(state, "x", w), w + "x");
+  if (root.at("version").integer() != kVersion) {
+    root.at("version").fail("is not " + std::to_string(kVersion));
+  }
+  RegisterCheckpoint c;
+  c.case_path = root.at("case").string();
+  c.case_file = root.at("case_file").string();
+  c.truth_path = root.at("truth").string();
+  c.truth_file = root.at("truth_file").string();
+  const JsonCursor max_iterations = root.at("max_iterations");
+  if (!max_iterations.value().is_null()) {
+    c.max_iterations = static_cast<int>(max_iterations.integer());
+  }
+  c.resumes = static_cast<int>(root.at("resumes").integer());
+  const JsonCursor identification = root.at("identification");
+  if (!identification.value().is_object()) identification.fail("is not an object");
+  c.identification = identification.value();
+  const JsonCursor state = root.at("state");
+  if (state.value().is_null()) return c;
+  offline::GaussNewtonCheckpoint s;
+  s.free_object = state.at("free_object").boolean();
+  const JsonCursor next_stage = state.at("next_stage");
+  if (!next_stage.value().is_null()) s.next_stage = stage(next_stage);
+  s.next_iteration = static_cast<int>(state.at("next_iteration").integer());
+  s.termination = termination(state.at("termination"));
+  s.initial_objective = hex_real(state.at("initial_objective"));
+  s.equilibrium_solves = static_cast<int>(state.at("equilibrium_solves").integer());
+  s.seconds = hex_real(state.at("seconds"));
+  const JsonCursor iterations = state.at("iterations");
+  for (std::size_t i = 0; i < iterations.array_size(); ++i) {
+    s.iterations.push_back(read_iteration(iterations.at(i)));
+  }
+  s.s = hex_vector(state.at("s"));
+  s.x = hex_vector(state.at("x"));
   c.state = std::move(s);
   return c;
 }

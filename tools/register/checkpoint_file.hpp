@@ -40,8 +40,10 @@ std::filesystem::path checkpoint_path(const std::filesystem::path& out_dir);
 void write_checkpoint(const std::filesystem::path& path, const RegisterCheckpoint& checkpoint);
 
 /// Reads a checkpoint; throws InputError with one line naming the file on any problem (missing,
-/// not a sinew-register checkpoint, malformed field).
+/// not a sinew-register checkpoint, malformed field: with its line, column and path).
 RegisterCheckpoint read_checkpoint(const std::filesystem::path& path);
+/// The same for a parsed document named `file`; throws JsonValueError.
+RegisterCheckpoint parse_checkpoint(const nlohmann::json& j, const std::string& file);
 
 /// The first difference between a checkpoint's identification and the current run's, as
 /// "tets: 1334 in the checkpoint, 1290 now"; std::nullopt when they are equal.
