@@ -322,452 +322,6 @@ void Tracker::continue_as_after_a_lost_frame() noexcept {
   last_miss_px_ = std::numeric_limits<double>::infinity();
 }
 
-CentrelinePoint Tracker::centreline(int element, double xi) const {
-  const Eigen::Vector2d X1 = model_.rest_positions().col(element);
-  const common::Vector6d ue = u_.segment<6>(3 * element);
-  if (options_.model == TrackerModel::kBeam) {
-    return hermite_centreline(X1, model_.element(element), node_tangents_.col(element),
-                              node_tangents_.col(element + 1), ue, xi);
-  }
-  // The snake is a polyline: straight chords between the nodes.
-  CentrelinePoint p;
-  const Eigen::Vector2d x1 = X1 + ue.segment<2>(0);
-  const Eigen::Vector2d x2 = X1 + model_.element(element).chord + ue.segment<2>(3);
-  p.position = (1.0 - xi) * x1 + xi * x2;
-  Eigen::Vector2d t = x2 - x1;
-  const double norm = t.norm();
-  t = norm > 0 ? Eigen::Vector2d(t / norm) : Eigen::Vector2d(1.0, 0.0);
-  p.normal = Eigen::Vector2d(-t.y(), t.x());
-  p.jacobian.setZero();
-  p.jacobian(0, 0) = p.jacobian(1, 1) = 1.0 - xi;
-  p.jacobian(0, 3) = p.jacobian(1, 4) = xi;
-  return p;
-}
-
-void Tracker::evaluate_points(bool jacobians) {
-  if (options_.model != TrackerModel::kBeam) {
-    for (std::size_t k = 0; k < sample_points_.size(); ++k) {
-      points_[k] = centreline(sample_points_[k].element, sample_points_[k].xi);
-    }
-    return;
-  }
-  int prepared = -1;
-  HermiteElement h;
-  for (std::size_t k = 0; k < sample_points_.size(); ++k) {
-    const int e = sample_points_[k].element;
-    if (e != prepared) {
-      // Elements come in order (the end points last): consecutive ones share a node's tangent.
-      const HermiteElement previous = h;
-      h = hermite_element(model_.rest_positions().col(e), model_.element(e), node_tangents_.col(e),
-                          node_tangents_.col(e + 1), u_.segment<6>(3 * e),
-                          e == prepared + 1 && prepared >= 0 ? &previous : nullptr);
-      prepared = e;
-    }
-    points_[k] = hermite_point(h, sample_points_[k].xi, jacobians);
-  }
-}
-
-EdgePolarity Tracker::measure_polarity(const ImageView& frame) const {
-  double inside = 0.0, outside = 0.0;
-  int count = 0;
-  const double offset = options_.half_width_px + 3.0;
-  for (const SearchLine& line : lines_) {
-    if (line.side <= 0.0f) continue;  // one sample per position
-    const CentrelinePoint p = centreline(line.element, line.xi);
-    float centre, plus, minus;
-    if (frame.sample(p.position.x(), p.position.y(), &centre) &&
-        frame.sample(p.position.x() + offset * p.normal.x(), p.position.y() + offset * p.normal.y(),
-                     &plus) &&
-        frame.sample(p.position.x() - offset * p.normal.x(), p.position.y() - offset * p.normal.y(),
-                     &minus)) {
-      inside += centre;
-      outside += 0.5 * (plus + minus);
-      ++count;
-    }
-  }
-  if (count == 0) return EdgePolarity::kAny;
-  const double contrast = (outside - inside) / count;
-  if (contrast > options_.min_strength) return EdgePolarity::kDarkObject;
-  if (contrast < -options_.min_strength) return EdgePolarity::kBrightObject;
-  return EdgePolarity::kAny;
-}
-
-Eigen::Vector2d Tracker::expected_point(const SearchLine& line, const CentrelinePoint& p,
-                                        Eigen::Vector2d* direction) const {
-  if (line.end == 0) {
-    *direction = p.normal;
-    return p.position + (line.side * options_.half_width_px) * p.normal;
-  }
-  // The normal is the tangent turned by +90°, so the tangent is (n.y, −n.x).
-  *direction = line.end * Eigen::Vector2d(p.normal.y(), -p.normal.x());
-  return p.position + options_.half_width_px * *direction;
-}
-
-void Tracker::search(const ImageView& frame, int range_px) {
-  const int K = options_.max_candidates;
-  evaluate_points(/*jacobians=*/false);  // positions and normals; residuals() needs the rest
-  ProfileSearch base = profile_search_;
-  base.range_px = std::min(range_px, profile_search_.range_px);  // never past the scratch
-  // In edge mode the wide first search only has to bring the model near the object's strong
-  // boundaries: one pixel row is enough (a third of the samples); the band averaging that fixes
-  // the final positions comes after. Thin lines in noise need the band from the start.
-  if (range_px > options_.search_range_px && options_.observation == ObservationMode::kEdge) {
-    base.band_px = 0;
-  }
-  const int margin = base.margin();
-  // The whole-pixel offset of a line's centre from its sample point (± the rounded half width).
-  const int half_width = static_cast<int>(std::lround(options_.half_width_px));
-  auto side_offset_px = [&](const SearchLine& line) {
-    return line.side > 0.0f ? half_width : line.side < 0.0f ? -half_width : 0;
-  };
-  float* profile = scratch_.data();
-  float* response = scratch_.data() + scratch_.size() / 2;
-  // Expected intensity step along the search direction (edge mode): a dark object's +n boundary
-  // goes dark → bright, its −n boundary bright → dark.
-  auto edge_sign = [&](const SearchLine& line) {
-    if (options_.observation != ObservationMode::kEdge) return 0;
-    const int sign = line.side > 0 ? 1 : -1;
-    return polarity_ == EdgePolarity::kDarkObject     ? sign
-           : polarity_ == EdgePolarity::kBrightObject ? -sign
-                                                      : 0;
-  };
-  if (options_.observation == ObservationMode::kEdgeMap) {
-    // The seed's observations: the edge pixels nearest the model along each line.
-    for (std::size_t j = 0; j < lines_.size(); ++j) {
-      SearchLine& line = lines_[j];
-      line.centre = expected_point(line, points_[line.point], &line.normal);
-      line.num_candidates =
-          search_edge_map(frame, line.centre, line.normal, base.range_px, K, &candidates_[j * K]);
-    }
-    return;
-  }
-  // Pixels reach the cache a few sample points ahead of their sampling (see prefetch_profile).
-  const int reach = (sides_ == 2 ? half_width : 0) + base.range_px + margin;
-  constexpr int kPrefetchAhead = 4;
-  auto prefetch = [&](std::size_t point) {
-    if (point < points_.size()) {
-      prefetch_profile(frame, points_[point].position, points_[point].normal, -reach,
-                       2 * reach + 2);
-    }
-  };
-  for (int k = 0; k < kPrefetchAhead; ++k) prefetch(k);
-  std::size_t l = 0;
-  while (l < lines_.size()) {
-    SearchLine& line = lines_[l];
-    const CentrelinePoint& p = points_[line.point];
-    prefetch(line.point + kPrefetchAhead);
-    if (line.end != 0) {
-      // An end: the object gives way to background going outwards along the tangent.
-      line.centre = expected_point(line, p, &line.normal);
-      ProfileSearch search = base;
-      search.mode = ObservationMode::kEdge;
-      const bool dark = options_.observation == ObservationMode::kDarkLine ||
-                        options_.observation == ObservationMode::kDarkRidge ||
-                        (options_.observation == ObservationMode::kEdge &&
-                         polarity_ == EdgePolarity::kDarkObject);
-      const bool bright = options_.observation == ObservationMode::kBrightLine ||
-                          (options_.observation == ObservationMode::kEdge &&
-                           polarity_ == EdgePolarity::kBrightObject);
-      search.expected_sign = dark ? 1 : bright ? -1 : 0;
-      if (line.end < 0 && options_.start_end == StartEnd::kDarkRegion) {
-        // The follicle: intensity falls where the face begins, going outwards from the base.
-        search.expected_sign = -1;
-        search.min_strength = static_cast<float>(options_.dark_region_min_step);
-      }
-      line.num_candidates = search_profile(frame, line.centre, line.normal, search, scratch_.data(),
-                                           &candidates_[l * K]);
-      ++l;
-      continue;
-    }
-    // The lines of one sample point (both boundaries in edge mode) search along the same normal:
-    // one profile across the object serves them all (edge mode: 2·(w + range) + 1 samples instead
-    // of 2·(2·range + 1), w the half width). Samples sit at whole pixels from the centreline; a
-    // line whose centre is not (fractional half width) reports offsets relative to its centre.
-    std::size_t last = l;
-    while (last + 1 < lines_.size() && lines_[last + 1].point == line.point &&
-           lines_[last + 1].end == 0) {
-      ++last;
-    }
-    int lo = std::numeric_limits<int>::max(), hi = std::numeric_limits<int>::min();
-    for (std::size_t j = l; j <= last; ++j) {
-      lines_[j].centre = expected_point(lines_[j], p, &lines_[j].normal);
-      const int c = side_offset_px(lines_[j]);
-      lo = std::min(lo, c - base.range_px - margin);
-      hi = std::max(hi, c + base.range_px + margin);
-    }
-    sample_profile(frame, p.position, p.normal, lo, hi - lo + 1, base.band_px, profile);
-    for (std::size_t j = l; j <= last; ++j) {
-      const double c = lines_[j].side * options_.half_width_px;
-      const int ci = side_offset_px(lines_[j]);
-      ProfileSearch search = base;
-      search.expected_sign = edge_sign(lines_[j]);
-      lines_[j].num_candidates = find_candidates(profile, ci - lo, static_cast<float>(c - ci),
-                                                 search, response, &candidates_[j * K]);
-    }
-    l = last + 1;
-  }
-}
-
-double Tracker::residuals() {
-  const int K = options_.max_candidates;
-  std::size_t valid = 0;
-  evaluate_points();
-  for (std::size_t l = 0; l < lines_.size(); ++l) {
-    const SearchLine& line = lines_[l];
-    const CentrelinePoint& p = points_[line.point];
-    if (l == 0 || lines_[l - 1].point != line.point) {
-      // d = (observation − model)·n₀, so ∂d/∂u = −n₀ᵀ ∂c/∂u (the normal's own variation is
-      // second order at the fit). The lines of a point share it; add_image_term reads the first's.
-      jacobian_rows_[l] = -(line.normal.transpose() * p.jacobian).transpose();
-    }
-    residual_[l] = kNaN;
-    strength_[l] = 0.0f;
-    if (line.num_candidates == 0) continue;
-    Eigen::Vector2d direction;
-    const Eigen::Vector2d model_point = expected_point(line, p, &direction);
-    const double model_offset = (model_point - line.centre).dot(line.normal);
-    double best = std::numeric_limits<double>::infinity();
-    // Candidates are sorted strongest first. In a frame's first repetition, when the model may
-    // still be far off, the strongest response wins; afterwards the one nearest the model.
-    // Ends always take the nearest: beyond an object's end the strongest step is often another
-    // object (a holder, the image border).
-    const bool strongest = strongest_candidate_ && line.end == 0;
-    float best_strength = 0.0f;
-    for (int c = 0; c < (strongest ? 1 : line.num_candidates); ++c) {
-      const double d = candidates_[l * K + c].offset - model_offset;
-      if (std::abs(d) < std::abs(best)) {
-        best = d;
-        best_strength = candidates_[l * K + c].strength;
-      }
-    }
-    residual_[l] = static_cast<float>(best);
-    strength_[l] = best_strength;
-    sorted_[valid++] = static_cast<float>(std::abs(best));
-  }
-  cutoff_ = 0.0;
-  if (valid == 0) return 0.0;
-  const double median =
-      detail::kth_smallest(sorted_.data(), static_cast<int>(valid), static_cast<int>(valid / 2));
-  const double sigma = std::max(1.4826 * median, options_.min_sigma_px);
-  cutoff_ = options_.tukey_c * sigma;
-  return cutoff_;
-}
-
-double Tracker::object_fraction_at_last_step() const {
-  // The end-of-frame test for the object (see track()) on the residuals of the last Newton step,
-  // without the pairing of boundaries.
-  const double near = std::min(cutoff_, options_.object_residual_px);
-  const float threshold = static_cast<float>(options_.min_relative_strength * typical_strength_);
-  int strong = 0;
-  for (std::size_t l = 0; l < lines_.size(); ++l) {
-    strong += std::abs(residual_[l]) < near && strength_[l] >= threshold;
-  }
-  return lines_.empty() ? 0.0 : double(strong) / double(lines_.size());
-}
-
-void Tracker::add_image_term(double cutoff) {
-  // Lines of one sample point share their Jacobian row (the same normal at the same point), so
-  // their Tukey-weighted terms add up to one rank-1 update (Σw) j jᵀ; an element's updates are
-  // summed locally and scattered into the system once.
-  const bool snake = options_.model == TrackerModel::kSnake;
-  const double inverse_cutoff = 1.0 / cutoff;  // used only where |d| < cutoff
-  common::Matrix6d H = common::Matrix6d::Zero();
-  common::Vector6d g = common::Vector6d::Zero();
-  int element = -1;
-  auto scatter = [&]() {
-    if (element < 0) return;
-    if (snake) {
-      snake_matrix_.block<6, 6>(3 * element, 3 * element) += H;
-    } else {
-      tangent_.add_element(element, H);
-    }
-    gradient_.segment<6>(3 * element) += g;
-    H.setZero();
-    g.setZero();
-  };
-  std::size_t l = 0;
-  while (l < lines_.size()) {
-    const std::size_t first = l;
-    double sum_w = 0.0, sum_wd = 0.0;
-    // The follicle's face edge is one strong feature, not one of many samples of the object: its
-    // robust scale is the distance its search covers, not the normals' (a whisker that slid by
-    // more than the normals' cut-off would otherwise never be pulled back).
-    const bool follicle = lines_[first].end < 0 && options_.start_end == StartEnd::kDarkRegion;
-    const double line_cutoff =
-        follicle ? std::max(cutoff, double(options_.first_search_range_px)) : cutoff;
-    const double line_inverse_cutoff = follicle ? 1.0 / line_cutoff : inverse_cutoff;
-    for (; l < lines_.size() && lines_[l].point == lines_[first].point; ++l) {
-      const float d = residual_[l];
-      if (!(std::abs(d) < line_cutoff)) continue;  // NaN or an outlier: weight 0
-      const double r = d * line_inverse_cutoff;
-      const double w = observation_weight_ * (1.0 - r * r) * (1.0 - r * r);  // Tukey
-      sum_w += w;
-      sum_wd += w * d;
-    }
-    if (sum_w == 0.0) continue;
-    if (lines_[first].end != 0) {
-      sum_w *= options_.end_weight;
-      sum_wd *= options_.end_weight;
-    }
-    if (lines_[first].element != element) {
-      scatter();
-      element = lines_[first].element;
-    }
-    const common::Vector6d& j = jacobian_rows_[first];
-    H.noalias() += (sum_w * j) * j.transpose();
-    g += sum_wd * j;
-  }
-  scatter();
-}
-
-void Tracker::add_snake_term() {
-  // E = w_s Σ_e (|d_e| − L₀)² + w_b Σ_i |Δ²x_i − Δ²X_i|² (seed 000 §5.2), positions only.
-  const int n = model_.num_nodes();
-  const double ws = options_.snake_stretch_weight, wb = options_.snake_bend_weight;
-  for (int e = 0; e + 1 < n; ++e) {
-    const Eigen::Vector2d d =
-        model_.element(e).chord + u_.segment<2>(3 * e + 3) - u_.segment<2>(3 * e);
-    const double len = std::max(d.norm(), 1e-12);
-    const double L0 = model_.element(e).length;
-    const Eigen::Vector2d g = d / len;
-    const Eigen::Vector2d grad = 2.0 * ws * (len - L0) * g;
-    // Hessian of (|d| − L₀)²: 2 g gᵀ + 2 (|d| − L₀)/|d| (I − g gᵀ), the second part clamped at 0.
-    Eigen::Matrix2d H = 2.0 * ws * g * g.transpose();
-    if (len > L0)
-      H += 2.0 * ws * (len - L0) / len * (Eigen::Matrix2d::Identity() - g * g.transpose());
-    gradient_.segment<2>(3 * e) -= grad;
-    gradient_.segment<2>(3 * e + 3) += grad;
-    snake_matrix_.block<2, 2>(3 * e, 3 * e) += H;
-    snake_matrix_.block<2, 2>(3 * e + 3, 3 * e + 3) += H;
-    snake_matrix_.block<2, 2>(3 * e, 3 * e + 3) -= H;
-    snake_matrix_.block<2, 2>(3 * e + 3, 3 * e) -= H;
-  }
-  const double coeff[3] = {1.0, -2.0, 1.0};
-  for (int i = 1; i + 1 < n; ++i) {
-    // Δ²u (the reference's Δ²X cancels in Δ²x − Δ²X).
-    const Eigen::Vector2d b =
-        u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) + u_.segment<2>(3 * i - 3);
-    for (int a = 0; a < 3; ++a) {
-      gradient_.segment<2>(3 * (i - 1 + a)) += 2.0 * wb * coeff[a] * b;
-      for (int c = 0; c < 3; ++c) {
-        snake_matrix_.block<2, 2>(3 * (i - 1 + a), 3 * (i - 1 + c)).diagonal().array() +=
-            2.0 * wb * coeff[a] * coeff[c];
-      }
-    }
-  }
-}
-
-bool Tracker::newton_step() {
-  const double cutoff = residuals();
-  const int n = model_.num_nodes();
-  if (options_.model == TrackerModel::kBeam) {
-    Eigen::Ref<Eigen::VectorXd> g(gradient_);
-    model_.evaluate(u_, nullptr, &g, &tangent_);
-    gradient_ -= p_ref_;  // elastic forces relative to this repetition's start
-    add_image_term(cutoff);
-    for (int i = 0; i < n; ++i) {
-      tangent_.diagonal(i)(0, 0) += damping_translation_;
-      tangent_.diagonal(i)(1, 1) += damping_translation_;
-      tangent_.diagonal(i)(2, 2) += damping_rotation_;
-    }
-    const auto& fixed = model_.fixed_mask();
-    tangent_.apply_fixed_dofs(fixed);
-    for (Eigen::Index k = 0; k < gradient_.size(); ++k) {
-      if (fixed[k]) gradient_[k] = 0.0;
-    }
-    du_ = -gradient_;
-    if (options_.dense_solve) {
-      // The seed's dense solve (for comparisons): the same matrix, factorised as a full one.
-      dense_tangent_.setZero();
-      for (int i = 0; i < n; ++i) {
-        dense_tangent_.block<3, 3>(3 * i, 3 * i) = tangent_.diagonal(i);
-        if (i + 1 < n) {
-          dense_tangent_.block<3, 3>(3 * i + 3, 3 * i) = tangent_.lower(i);
-          dense_tangent_.block<3, 3>(3 * i, 3 * i + 3) = tangent_.lower(i).transpose();
-        }
-      }
-      dense_ldlt_.compute(dense_tangent_);
-      if (dense_ldlt_.info() != Eigen::Success) return false;
-      dense_ldlt_.solveInPlace(du_);
-    } else {
-      if (!ldlt_.factor(tangent_)) return false;
-      ldlt_.solve_in_place(du_);
-    }
-  } else {
-    snake_matrix_.setZero();
-    gradient_.setZero();
-    add_snake_term();
-    gradient_ -= p_ref_;
-    add_image_term(cutoff);
-    snake_matrix_.diagonal().array() += damping_translation_;
-    for (Eigen::Index k = 0; k < gradient_.size(); ++k) {
-      if (!snake_fixed_[k]) continue;
-      gradient_[k] = 0.0;
-      snake_matrix_.row(k).setZero();
-      snake_matrix_.col(k).setZero();
-      snake_matrix_(k, k) = 1.0;
-    }
-    snake_ldlt_.compute(snake_matrix_);
-    if (snake_ldlt_.info() != Eigen::Success) return false;
-    du_ = -gradient_;
-    snake_ldlt_.solveInPlace(du_);
-  }
-  if (!du_.allFinite()) return false;
-  u_ += du_;
-  return true;
-}
-
-void Tracker::internal_force_at_start() {
-  bending_reference_force(p_ref_);
-}
-
-void Tracker::bending_reference_force(Eigen::VectorXd& p_ref) const {
-  // Only the bending part is taken relative to the repetition's start: axial and shear strains stay
-  // measured from the reference, so the image forces can bend the beam all the way onto the data
-  // but cannot stretch it along its axis, where edges give no information.
-  p_ref.setZero();
-  if (options_.model == TrackerModel::kBeam) {
-    // The bending part of p is L₀·M·∂κ/∂u = M·(−e_θ₁ + e_θ₂) per element.
-    for (int e = 0; e < model_.num_elements(); ++e) {
-      const common::BeamStrains h = common::beam_strains(model_.element(e), u_.segment<6>(3 * e));
-      const common::BeamSection& section = model_.description().sections[e];
-      const double M0 =
-          model_.description().prestress.empty() ? 0.0 : model_.description().prestress[e].M0;
-      const double M = (1.0 - options_.bending_memory) * (M0 + section.EI * h.kappa);
-      p_ref[3 * e + 2] -= M;
-      p_ref[3 * e + 5] += M;
-    }
-  } else {
-    // Snake: the bending term's gradient at the start (the stretching term stays absolute).
-    const int n = model_.num_nodes();
-    const double coeff[3] = {1.0, -2.0, 1.0};
-    for (int i = 1; i + 1 < n; ++i) {
-      const Eigen::Vector2d b =
-          u_.segment<2>(3 * i + 3) - 2.0 * u_.segment<2>(3 * i) + u_.segment<2>(3 * i - 3);
-      for (int a = 0; a < 3; ++a) {
-        p_ref.segment<2>(3 * (i - 1 + a)) +=
-            (1.0 - options_.bending_memory) * 2.0 * options_.snake_bend_weight * coeff[a] * b;
-      }
-    }
-  }
-}
-
-double Tracker::rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const {
-  double sum = 0.0;
-  for (int i = 0; i < model_.num_nodes(); ++i) {
-    sum += (a.segment<2>(3 * i) - b.segment<2>(3 * i)).squaredNorm();
-  }
-  return std::sqrt(sum / model_.num_nodes());
-}
-
-double Tracker::max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const {
-  double m = 0.0;
-  for (int i = 0; i < model_.num_nodes(); ++i) {
-    m = std::max(m, (a.segment<2>(3 * i) - b.segment<2>(3 * i)).norm());
-  }
-  return m;
-}
-
 FrameSummary Tracker::track(const ImageView& frame) noexcept {
   const auto t0 = std::chrono::steady_clock::now();
   FrameSummary summary;
@@ -777,6 +331,47 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   };
   if (!valid() || !frame.valid()) return finish();
 
+  const bool with_velocity = predict(frame);
+  bool failed = false;
+  const bool converged = repetitions(frame, summary, &failed);
+  const int strong_samples = measure_fit(frame, summary, converged, failed);
+  if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction ||
+      summary.object_fraction < options_.min_inlier_fraction) {
+    summary.status = FrameStatus::kLost;
+    last_accepted_ = false;
+    verify_have_previous_ = false;
+    // Keep the last good state and forget the velocity: the next frame searches from there.
+    if (frames_ >= 1) {
+      u_ = u_prev1_;
+    } else {
+      u_.setZero();
+    }
+    u_prev2_ = u_prev1_;
+    previous_lost_ = true;
+    return finish();
+  }
+  summary.status = converged ? FrameStatus::kOk : FrameStatus::kNotConverged;
+  previous_lost_ = false;
+  last_accepted_ = true;
+  if (strong_samples > 0) {
+    const double median = detail::kth_smallest(sorted_.data(), strong_samples, strong_samples / 2);
+    typical_strength_ = frames_ == 0 ? median : 0.8 * typical_strength_ + 0.2 * median;
+  }
+  last_miss_px_ = with_velocity ? max_node_distance(u_, u_predicted_) : 0.0;
+  u_prev2_ = frames_ >= 1 ? u_prev1_ : u_;
+  u_prev1_ = u_;
+  ++frames_;
+
+  if (options_.model == TrackerModel::kBeam) {
+    Eigen::Ref<Eigen::VectorXd> f(forces_);
+    model_.evaluate(u_, nullptr, &f, nullptr);  // f = p(u_T): the load that holds this shape
+    if (options_.verify_forces) verify(summary);
+    if (!load_nodes_.empty()) fit_loads(summary);
+  }
+  return finish();
+}
+
+bool Tracker::predict(const ImageView& frame) noexcept {
   if (frames_ == 0 && options_.observation == ObservationMode::kEdge) {
     u_.setZero();
     polarity_ =
@@ -795,9 +390,11 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   // or reset_motion() predicts without one, and its miss is the whole motion, not a prediction
   // error: the frame after it trusts its first velocity, with the narrow search's retry as the
   // safety net).
-  const bool with_velocity =
-      frames_ >= 2 && options_.predict && !previous_lost_ && std::isfinite(last_miss_px_);
+  return frames_ >= 2 && options_.predict && !previous_lost_ && std::isfinite(last_miss_px_);
+}
 
+bool Tracker::repetitions(const ImageView& frame, FrameSummary& summary,
+                          bool* failed_out) noexcept {
   bool converged = false, failed = false;
   double last_move = std::numeric_limits<double>::infinity();
   // The first frame is where the initial polyline was drawn: no motion to catch up with. Later,
@@ -867,35 +464,49 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
       converged = true;
       break;
     }
-    // The next repetition's move, predicted instead of taken: when this one ended with a step
-    // below the tolerance and the next would re-use the candidates, its gradient differs from
-    // this one's last only by the new bending reference, Δp = p_ref(u) − p_ref(u_start), so its
-    // first step is K⁻¹Δp on the last factorisation (one block-tridiagonal solve instead of a
-    // Newton iteration), and the steps after it are a quarter of the last one at most. Applied,
-    // and the frame ends, when that is below the tolerance.
-    if (!failed && polish_optional && options_.model == TrackerModel::kBeam &&
-        !options_.dense_solve && step < options_.convergence_px && !coarse_candidates &&
-        max_node_distance(u_, u_searched_) <= options_.research_px) {
-      bending_reference_force(p_next_);
-      du_ = p_next_ - p_ref_;
-      const auto& fixed = model_.fixed_mask();
-      for (Eigen::Index k = 0; k < du_.size(); ++k) {
-        if (fixed[k]) du_[k] = 0.0;
-      }
-      ldlt_.solve_in_place(du_);
-      double predicted = 0.0;
-      for (int i = 0; i < model_.num_nodes(); ++i)
-        predicted = std::max(predicted, du_.segment<2>(3 * i).norm());
-      if (du_.allFinite() && predicted + 0.25 * step < options_.convergence_px) {
-        u_ += du_;
-        converged = true;
-        ++summary.predicted;
-        break;
-      }
+    // The next repetition's move, predicted instead of taken (see take_predicted_repetition).
+    if (!failed && polish_optional && take_predicted_repetition(step, coarse_candidates)) {
+      converged = true;
+      ++summary.predicted;
+      break;
     }
     last_move = move;
   }
+  *failed_out = failed;
+  return converged;
+}
 
+bool Tracker::take_predicted_repetition(double step, bool coarse_candidates) noexcept {
+  // The next repetition's move, predicted instead of taken: when this one ended with a step
+  // below the tolerance and the next would re-use the candidates, its gradient differs from
+  // this one's last only by the new bending reference, Δp = p_ref(u) − p_ref(u_start), so its
+  // first step is K⁻¹Δp on the last factorisation (one block-tridiagonal solve instead of a
+  // Newton iteration), and the steps after it are a quarter of the last one at most. Applied,
+  // and the frame ends, when that is below the tolerance.
+  if (!(options_.model == TrackerModel::kBeam && !options_.dense_solve &&
+        step < options_.convergence_px && !coarse_candidates &&
+        max_node_distance(u_, u_searched_) <= options_.research_px)) {
+    return false;
+  }
+  bending_reference_force(p_next_);
+  du_ = p_next_ - p_ref_;
+  const auto& fixed = model_.fixed_mask();
+  for (Eigen::Index k = 0; k < du_.size(); ++k) {
+    if (fixed[k]) du_[k] = 0.0;
+  }
+  ldlt_.solve_in_place(du_);
+  double predicted = 0.0;
+  for (int i = 0; i < model_.num_nodes(); ++i)
+    predicted = std::max(predicted, du_.segment<2>(3 * i).norm());
+  if (du_.allFinite() && predicted + 0.25 * step < options_.convergence_px) {
+    u_ += du_;
+    return true;
+  }
+  return false;
+}
+
+int Tracker::measure_fit(const ImageView& frame, FrameSummary& summary, bool converged,
+                         bool failed) noexcept {
   // Final residuals: RMS of the inliers and the fraction of search lines that found one. A
   // converged frame keeps those of its last Newton step (nearest-candidate association, within
   // convergence_px of the final state: a fraction of the residual bounds below); otherwise they
@@ -943,116 +554,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
     ++strong;
   }
   summary.object_fraction = lines_.empty() ? 0.0 : double(strong) / double(lines_.size());
-
-  if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction ||
-      summary.object_fraction < options_.min_inlier_fraction) {
-    summary.status = FrameStatus::kLost;
-    last_accepted_ = false;
-    verify_have_previous_ = false;
-    // Keep the last good state and forget the velocity: the next frame searches from there.
-    if (frames_ >= 1) {
-      u_ = u_prev1_;
-    } else {
-      u_.setZero();
-    }
-    u_prev2_ = u_prev1_;
-    previous_lost_ = true;
-    return finish();
-  }
-  summary.status = converged ? FrameStatus::kOk : FrameStatus::kNotConverged;
-  previous_lost_ = false;
-  last_accepted_ = true;
-  if (strong_samples > 0) {
-    const double median = detail::kth_smallest(sorted_.data(), strong_samples, strong_samples / 2);
-    typical_strength_ = frames_ == 0 ? median : 0.8 * typical_strength_ + 0.2 * median;
-  }
-  last_miss_px_ = with_velocity ? max_node_distance(u_, u_predicted_) : 0.0;
-  u_prev2_ = frames_ >= 1 ? u_prev1_ : u_;
-  u_prev1_ = u_;
-  ++frames_;
-
-  if (options_.model == TrackerModel::kBeam) {
-    Eigen::Ref<Eigen::VectorXd> f(forces_);
-    model_.evaluate(u_, nullptr, &f, nullptr);  // f = p(u_T): the load that holds this shape
-    if (options_.verify_forces) verify(summary);
-    if (!load_nodes_.empty()) fit_loads(summary);
-  }
-  return finish();
-}
-
-void Tracker::verify(FrameSummary& summary) {
-  // The seed's check: apply f = p(u_T) in a forward static solve and compare with the fit. The
-  // solve continues from the previous tracked frame, which is an exact equilibrium of its own
-  // forces, stepping the loads to this frame's (forces between consecutive frames, seed 000 §4).
-  // A solve from the reference configuration is the fallback (first frame, after a lost frame):
-  // with noisy per-node forces a slender beam's path from the reference can end on another branch.
-  common::StaticSolverSummary s;
-  const bool free = !model_.rigid_motions_constrained();
-  bool warm = verify_have_previous_;
-  if (warm) {
-    u_verify_ = verify_previous_state_;
-    verify_loads_prev_ = verify_previous_forces_;
-    if (free) {
-      // The verification clamps node 0 at its tracked pose: move the previous equilibrium rigidly
-      // onto this frame's node 0 (loads rotate with it and stay in equilibrium).
-      const double dtheta = u_[2] - u_verify_[2];
-      const Eigen::Rotation2Dd R(dtheta);
-      const Eigen::Vector2d x0_old = model_.rest_positions().col(0) + u_verify_.segment<2>(0);
-      const Eigen::Vector2d x0_new = model_.rest_positions().col(0) + u_.segment<2>(0);
-      for (int i = 0; i < model_.num_nodes(); ++i) {
-        const Eigen::Vector2d X = model_.rest_positions().col(i);
-        const Eigen::Vector2d x = X + u_verify_.segment<2>(3 * i);
-        u_verify_.segment<2>(3 * i) = R * (x - x0_old) + x0_new - X;
-        u_verify_[3 * i + 2] += dtheta;
-        verify_loads_prev_.segment<2>(3 * i) = R * verify_loads_prev_.segment<2>(3 * i);
-      }
-    }
-    // Newton straight to this frame's loads first: it converges to the nearby equilibrium even
-    // where that equilibrium is unstable (noisy per-node forces can compress a slender beam past
-    // buckling), where a load path would run into a limit point. Then a stepped path.
-    verify_backup_ = u_verify_;
-    s = verify_solver_direct_.solve(forces_, u_verify_, &verify_loads_prev_);
-    if (!s.converged()) {
-      u_verify_ = verify_backup_;
-      s = verify_solver_warm_.solve(forces_, u_verify_, &verify_loads_prev_);
-    }
-    warm = s.converged();
-  }
-  if (!warm) {
-    // From the reference configuration (moved rigidly to the tracked pose of node 0 for free
-    // beams).
-    if (!free) {
-      u_verify_.setZero();
-    } else {
-      const double theta = u_[2];
-      const Eigen::Rotation2Dd R(theta);
-      const Eigen::Vector2d X0 = model_.rest_positions().col(0);
-      for (int i = 0; i < model_.num_nodes(); ++i) {
-        const Eigen::Vector2d X = model_.rest_positions().col(i);
-        u_verify_.segment<2>(3 * i) = R * (X - X0) + X0 + u_.segment<2>(0) - X;
-        u_verify_[3 * i + 2] = theta;
-      }
-    }
-    s = verify_solver_.solve(forces_, u_verify_);
-  }
-  summary.verified = s.converged();
-  if (summary.verified) summary.verify_px = max_node_distance(u_verify_, u_);
-  verify_previous_state_ = u_;
-  verify_previous_forces_ = forces_;
-  verify_have_previous_ = true;
-}
-
-void Tracker::fit_loads(FrameSummary& summary) {
-  const LoadFitSummary s =
-      load_fit_->fit(u_, fit_points_.data(), static_cast<int>(fit_points_.size()));
-  const int per_node = options_.fit_moments ? 3 : 2;
-  summary.loads_fitted = s.converged;
-  fitted_loads_.setZero();
-  for (std::size_t k = 0; k < load_nodes_.size(); ++k) {
-    fitted_loads_.segment(3 * load_nodes_[k], per_node) =
-        load_fit_->loads().segment(per_node * static_cast<Eigen::Index>(k), per_node);
-  }
-  summary.load_fit_rms_px = s.rms_px;
+  return strong_samples;
 }
 
 }  // namespace sinew::rt

@@ -271,6 +271,16 @@ class Tracker {
   // The bending reference force at u_ (what internal_force_at_start puts in p_ref_) into p_ref.
   void bending_reference_force(Eigen::VectorXd& p_ref) const;
   bool newton_step();
+  // track() in its steps: the predicted start (true when it carries a velocity); the repetitions
+  // of search and Newton fit (true when they converged; *failed when a Newton step failed), of
+  // which a last one may be predicted instead of taken (take_predicted_repetition: true when its
+  // move was applied); the final residuals with the inlier and object fractions (returns how many
+  // inlier strengths sorted_ holds for the running typical strength).
+  bool predict(const ImageView& frame) noexcept;
+  bool repetitions(const ImageView& frame, FrameSummary& summary, bool* failed) noexcept;
+  bool take_predicted_repetition(double step, bool coarse_candidates) noexcept;
+  int measure_fit(const ImageView& frame, FrameSummary& summary, bool converged,
+                  bool failed) noexcept;
   double max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
   double rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
   void verify(FrameSummary& summary);
