@@ -550,35 +550,24 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
   return std::nullopt;
 }
 
-WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& o) {
-  WhiskerDetection result;
-  if (auto err = o.validate()) {
-    result.error = *err;
-    return result;
-  }
-  if (!frame.valid() || frame.width < 16 || frame.height < 16) {
-    result.error = "whisker detection: the frame is empty or smaller than 16 x 16 pixels";
-    return result;
-  }
-  FaceSide side = o.face;
-  const Maps m = build_maps(frame, o, &side, &result.backlight);
-  result.face = side;
-  result.noise_percent = m.noise;
-  result.seed_contrast = m.seed;
-  result.follow_contrast = m.follow;
-  if (cv::countNonZero(m.face) == 0) {
-    result.error = std::string("whisker detection: no dark region touches the ") + to_string(side) +
-                   " border (no face); is the face on another side?";
-    return result;
-  }
+namespace {
 
+// A ridge centre a trace starts from.
+struct Seed {
+  Eigen::Vector2d p;
+  float contrast;
+};
+
+// A traced whisker before the pad and overlap tests.
+struct Candidate {
+  DetectedWhisker whisker;
+  bool extended = false;  // its follicle is an extension along its tangent (smooth_trace)
+};
+
+std::vector<Seed> find_seeds(const Maps& m) {
   // Seeds: ridge centres (contrast maxima across the ridge) outside the dark regions. Not only
   // near the face: a whisker that leaves the face behind a neighbour shows its own ridge only
   // farther out, and is traced back to the face from there.
-  struct Seed {
-    Eigen::Vector2d p;
-    float contrast;
-  };
   std::vector<Seed> seeds;
   for (int y = 1; y < m.contrast.rows - 1; ++y) {
     for (int x = 1; x < m.contrast.cols - 1; ++x) {
@@ -594,8 +583,14 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
   }
   std::sort(seeds.begin(), seeds.end(),
             [](const Seed& a, const Seed& b) { return a.contrast > b.contrast; });
-  result.seeds = static_cast<int>(seeds.size());
+  return seeds;
+}
 
+// Traces every seed (strongest first) that no earlier trace claimed; the traces that start at the
+// face and leave it, light enough and long enough, are the candidates (the others go to
+// result.rejected when o.keep_rejected).
+std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions& o,
+                                   const std::vector<Seed>& seeds, WhiskerDetection& result) {
   // Trace each seed not already on a traced whisker both ways along its ridge; the end nearer the
   // face is the follicle.
   cv::Mat claimed = cv::Mat::zeros(m.contrast.size(), CV_8U);
@@ -603,10 +598,6 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     for (const auto& p : points) {
       cv::circle(claimed, cv::Point(int(std::lround(p.x())), int(std::lround(p.y()))), 1, 255, -1);
     }
-  };
-  struct Candidate {
-    DetectedWhisker whisker;
-    bool extended = false;  // its follicle is an extension along its tangent (smooth_trace)
   };
   std::vector<Candidate> found;
   for (const Seed& seed : seeds) {
@@ -691,7 +682,11 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     claim(w.points);
     consider(std::move(smooth), extended);
   }
+  return found;
+}
 
+void drop_off_pad(std::vector<Candidate>& found, const WhiskerDetectionOptions& o,
+                  WhiskerDetection& result) {
   // A trace extended to the face names a follicle the image did not show: it is kept only on the
   // pad, within pad_extent_px of a follicle a trace reached by itself (a tip that ends beside the
   // cheek, extended, would name one there).
@@ -713,7 +708,10 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
                                return true;
                              }),
               found.end());
+}
 
+void accept_longest(std::vector<Candidate>& found, const Maps& m, const WhiskerDetectionOptions& o,
+                    WhiskerDetection& result) {
   // The longest first; a trace running along an accepted one over most of its length is it.
   std::sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
     return a.whisker.length_px > b.whisker.length_px;
@@ -737,7 +735,9 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     }
     result.whiskers.push_back(std::move(w));
   }
+}
 
+void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetection& result) {
   // What a whisker can touch: dark objects at the light smoothing's sharpness (the heavily
   // smoothed dark mask lies pixels inside a pole's edge: 5.8 px from a whisker pressed against an
   // 8 px pole) that come no nearer the face than twice the pad band (its outline, fur and
@@ -771,6 +771,38 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
                 result.object_distance.begin() + static_cast<std::ptrdiff_t>(y) * distance.cols);
     }
   }
+}
+
+}  // namespace
+
+WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& o) {
+  WhiskerDetection result;
+  if (auto err = o.validate()) {
+    result.error = *err;
+    return result;
+  }
+  if (!frame.valid() || frame.width < 16 || frame.height < 16) {
+    result.error = "whisker detection: the frame is empty or smaller than 16 x 16 pixels";
+    return result;
+  }
+  FaceSide side = o.face;
+  const Maps m = build_maps(frame, o, &side, &result.backlight);
+  result.face = side;
+  result.noise_percent = m.noise;
+  result.seed_contrast = m.seed;
+  result.follow_contrast = m.follow;
+  if (cv::countNonZero(m.face) == 0) {
+    result.error = std::string("whisker detection: no dark region touches the ") + to_string(side) +
+                   " border (no face); is the face on another side?";
+    return result;
+  }
+
+  const std::vector<Seed> seeds = find_seeds(m);
+  result.seeds = static_cast<int>(seeds.size());
+  std::vector<Candidate> found = trace_seeds(m, o, seeds, result);
+  drop_off_pad(found, o, result);
+  accept_longest(found, m, o, result);
+  find_objects(m, o, result);
 
   // Identities in order along the face's edge: by the follicle's coordinate along that border.
   const bool vertical = side == FaceSide::kLeft || side == FaceSide::kRight;

@@ -278,6 +278,45 @@ WhiskerAssociation WhiskerTracker::associate(
   summary.detected = m;
   if (n == 0 || m == 0) return summary;
 
+  const std::vector<int> match = match_detections(detected, cand, summary);
+  std::vector<double> detected_length(detected.size(), 0.0);
+  for (int d : cand) detected_length[d] = arc_lengths(detected[d]).back();
+  // A whisker that tracking kept keeps its fit, unless the fit strays from a detection that
+  // covers the whisker and a refit from the detection stays on it (replacing strays without that
+  // test lowered the shared video's on-ridge fraction, 76.2 % -> 68.2 %: a 30 fps frame's
+  // detections often run onto a crossing whisker). A lost one restarts on its detection and is
+  // fitted to this frame again; a refit that leaves the detection (slides along it, onto a
+  // neighbour) is undone: the whisker stays on its detection, reported not converged.
+  for (int w = 0; w < n; ++w) {
+    if (match[w] < 0) continue;
+    ++summary.matched;
+    take_detection(w, frame, detected[match[w]], detected_length[match[w]], summary);
+  }
+  // A whisker no detection matched keeps its fit unless the fit runs along a detection another
+  // whisker took: then it is on its neighbour.
+  std::vector<char> taken(detected.size(), 0);
+  for (int w = 0; w < n; ++w) {
+    if (match[w] >= 0) taken[match[w]] = 1;
+  }
+  for (int w = 0; w < n; ++w) {
+    if (match[w] >= 0 || results_[w].status == FrameStatus::kLost) continue;
+    for (std::size_t d = 0; d < detected.size(); ++d) {
+      if (!taken[d] || detected[d].size() < 2 || !runs_along(w, detected[d])) continue;
+      trackers_[w].reject_last_frame();
+      results_[w].status = FrameStatus::kLost;
+      results_[w].on_neighbour = true;
+      break;
+    }
+  }
+  update_geometry();
+  return summary;
+}
+
+std::vector<int> WhiskerTracker::match_detections(
+    const std::vector<std::vector<Eigen::Vector2d>>& detected, const std::vector<int>& cand,
+    WhiskerAssociation& summary) const {
+  const int n = num_whiskers();
+  const int m = static_cast<int>(cand.size());
   // Follicles never change their order along the face. The order is read along the principal
   // axis of the anchored follicles (the whisker pad's row, whatever side the face is on).
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
@@ -395,77 +434,53 @@ WhiskerAssociation WhiskerTracker::associate(
       --k;
     }
   }
+  return match;
+}
 
-  // A whisker that tracking kept keeps its fit, unless the fit strays from a detection that
-  // covers the whisker and a refit from the detection stays on it (replacing strays without that
-  // test lowered the shared video's on-ridge fraction, 76.2 % -> 68.2 %: a 30 fps frame's
-  // detections often run onto a crossing whisker). A lost one restarts on its detection and is
-  // fitted to this frame again; a refit that leaves the detection (slides along it, onto a
-  // neighbour) is undone: the whisker stays on its detection, reported not converged.
-  auto on_detection = [&](int w, const std::vector<Eigen::Vector2d>& pts) {
-    return runs_along(w, pts) &&
-           (trackers_[w].node_position(0) - pts.front()).norm() <= options_.associate_on_px;
-  };
-  for (int w = 0; w < n; ++w) {
-    if (match[w] < 0) continue;
-    ++summary.matched;
-    const auto& pts = detected[match[w]];
-    anchor_follicle_[w] = pts.front();
-    anchor_direction_[w] = direction_at_start(pts, first_element_length(w));
-    WhiskerFrame& r = results_[w];
-    const Eigen::Matrix2Xd nodes = nodes_along(w, pts);
-    const bool covers =
-        detected_length[match[w]] >= options_.associate_cover_fraction * rest_length(w);
-    if (r.status != FrameStatus::kLost) {
-      // A kept fit that strays from a detection covering its whisker is tried again from the
-      // detection; the refit replaces it only if it stays on the detection.
-      if (!covers || fraction_along(w, pts) >= options_.associate_stray_fraction) continue;
-      const Tracker kept = trackers_[w];
-      const WhiskerFrame kept_result = r;
-      trackers_[w].restart_at(nodes);
-      r.summary = trackers_[w].track(frame);
-      r.status = r.summary.status;
-      if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
-        trackers_[w] = kept;
-        r = kept_result;
-        continue;
-      }
-      r.reacquired = true;
-      ++summary.restarted;
-      continue;
-    }
+bool WhiskerTracker::on_detection(int w, const std::vector<Eigen::Vector2d>& pts) const {
+  return runs_along(w, pts) &&
+         (trackers_[w].node_position(0) - pts.front()).norm() <= options_.associate_on_px;
+}
+
+void WhiskerTracker::take_detection(int w, const ImageView& frame,
+                                    const std::vector<Eigen::Vector2d>& pts, double detected_length,
+                                    WhiskerAssociation& summary) {
+  anchor_follicle_[w] = pts.front();
+  anchor_direction_[w] = direction_at_start(pts, first_element_length(w));
+  WhiskerFrame& r = results_[w];
+  const Eigen::Matrix2Xd nodes = nodes_along(w, pts);
+  const bool covers = detected_length >= options_.associate_cover_fraction * rest_length(w);
+  if (r.status != FrameStatus::kLost) {
+    // A kept fit that strays from a detection covering its whisker is tried again from the
+    // detection; the refit replaces it only if it stays on the detection.
+    if (!covers || fraction_along(w, pts) >= options_.associate_stray_fraction) return;
+    const Tracker kept = trackers_[w];
+    const WhiskerFrame kept_result = r;
     trackers_[w].restart_at(nodes);
     r.summary = trackers_[w].track(frame);
     r.status = r.summary.status;
     if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
-      trackers_[w].restart_at(nodes);
-      // Placed without a fit: only where the detection covers the whisker; a short one would
-      // leave its outer nodes guessed.
-      r.status = covers ? FrameStatus::kNotConverged : FrameStatus::kLost;
+      trackers_[w] = kept;
+      r = kept_result;
+      return;
     }
     r.reacquired = true;
-    r.jumped = false;
-    r.on_neighbour = false;
     ++summary.restarted;
+    return;
   }
-  // A whisker no detection matched keeps its fit unless the fit runs along a detection another
-  // whisker took: then it is on its neighbour.
-  std::vector<char> taken(detected.size(), 0);
-  for (int w = 0; w < n; ++w) {
-    if (match[w] >= 0) taken[match[w]] = 1;
+  trackers_[w].restart_at(nodes);
+  r.summary = trackers_[w].track(frame);
+  r.status = r.summary.status;
+  if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
+    trackers_[w].restart_at(nodes);
+    // Placed without a fit: only where the detection covers the whisker; a short one would
+    // leave its outer nodes guessed.
+    r.status = covers ? FrameStatus::kNotConverged : FrameStatus::kLost;
   }
-  for (int w = 0; w < n; ++w) {
-    if (match[w] >= 0 || results_[w].status == FrameStatus::kLost) continue;
-    for (std::size_t d = 0; d < detected.size(); ++d) {
-      if (!taken[d] || detected[d].size() < 2 || !runs_along(w, detected[d])) continue;
-      trackers_[w].reject_last_frame();
-      results_[w].status = FrameStatus::kLost;
-      results_[w].on_neighbour = true;
-      break;
-    }
-  }
-  update_geometry();
-  return summary;
+  r.reacquired = true;
+  r.jumped = false;
+  r.on_neighbour = false;
+  ++summary.restarted;
 }
 
 void WhiskerTracker::update_geometry() noexcept {
