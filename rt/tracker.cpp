@@ -15,8 +15,6 @@ namespace sinew::rt {
 
 namespace {
 
-constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
 std::string field_error(const char* name, double value, const char* constraint) {
   return common::detail::field_error("options.", name, value, constraint);
 }

@@ -228,6 +228,7 @@ class Tracker {
   const Eigen::VectorXd& verification_state() const { return u_verify_; }
 
  private:
+  static constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();  // a line with no residual
   struct SearchLine {
     int element = 0;
     float xi = 0.0f;

@@ -13,12 +13,6 @@
 
 namespace sinew::rt {
 
-namespace {
-
-constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-}  // namespace
-
 CentrelinePoint Tracker::centreline(int element, double xi) const {
   const Eigen::Vector2d X1 = model_.rest_positions().col(element);
   const common::Vector6d ue = u_.segment<6>(3 * element);

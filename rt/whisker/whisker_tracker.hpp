@@ -129,11 +129,13 @@ class WhiskerTracker {
   // The fraction of whisker w's nodes (up to the curve's length) within associate_on_px of it.
   double fraction_along(int w, const std::vector<Eigen::Vector2d>& pts) const;
   // associate() in its steps: the order-preserving matching of whiskers to the usable
-  // detections `cand` (per whisker, the detection's index or -1; sets summary.shift); whether
-  // whisker w's fit runs along a detection from its follicle on; and taking a matched detection
-  // (the anchor moves to it; a lost or straying whisker restarts on it).
+  // detections `cand` (detected_length: each detection's arc length; per whisker, the detection's
+  // index or -1; sets summary.shift); whether whisker w's fit runs along a detection from its
+  // follicle on; and taking a matched detection (the anchor moves to it; a lost or straying whisker
+  // restarts on it).
   std::vector<int> match_detections(const std::vector<std::vector<Eigen::Vector2d>>& detected,
                                     const std::vector<int>& cand,
+                                    const std::vector<double>& detected_length,
                                     WhiskerAssociation& summary) const;
   bool on_detection(int w, const std::vector<Eigen::Vector2d>& pts) const;
   void take_detection(int w, const ImageView& frame, const std::vector<Eigen::Vector2d>& pts,
