@@ -328,6 +328,10 @@ class PyWhiskers {
         d[si_ ? "pammer_force_N" : "pammer_force_model"] = sw.contact_load->pammer_force;
         d[si_ ? "pammer_moment_N_m" : "pammer_moment_model"] = sw.contact_load->pammer_moment;
       }
+      if (const auto f = sw.follicle_force()) {
+        d[si_ ? "follicle_force_axial_N" : "follicle_force_axial_model"] = f->x();
+        d[si_ ? "follicle_force_lateral_N" : "follicle_force_lateral_model"] = f->y();
+      }
       whiskers.append(d);
     }
     py::dict out;

@@ -14,7 +14,8 @@ With a contact load in the results (contact_moment_model, contact_force_model), 
 against the truth's contact force and that force's moment about the true follicle.
 
 Prints the figures and exits 1 when any of --require-found, --require-good, --max-base-px,
---max-contact-arc-px, --max-contact-moment-error or the no-swap rule fails (so a test can call
+--max-contact-arc-px, --max-contact-moment-error, --max-follicle-force-error or the no-swap
+rule fails (so a test can call
 it).
 """
 import argparse
@@ -61,6 +62,9 @@ def main():
     ap.add_argument("--max-contact-moment-error", type=float, default=None,
                     help="require the median relative error of the contact's moment about the "
                          "follicle (sinew-track's contact load) at most this")
+    ap.add_argument("--max-follicle-force-error", type=float, default=None,
+                    help="require the median error of the force on the follicle (axial, lateral) "
+                         "at most this fraction of the true force")
     ap.add_argument("--require-good", type=float, default=0.0,
                     help="fraction of whisker-frames that must be good")
     ap.add_argument("--max-base-px", type=float, default=float("inf"),
@@ -106,6 +110,9 @@ def main():
     said, true_contact, arc_errors = {}, {}, []
     # The contact load against the truth's: the contact's moment about the follicle and the force.
     moment_errors, force_errors, pammer_errors = [], [], []
+    # The force on the follicle in the base frame (axial, lateral) against the truth's: the
+    # contact force in the true whisker's base frame; error relative to the true force's size.
+    follicle_errors = []
     no_load = 0  # contact frames whose load fit found no load (counted as 100 % off)
     curve, base, per_curve = [], {}, {}
     worst_swap = None
@@ -142,6 +149,18 @@ def main():
                         force_errors.append(float(np.linalg.norm(
                             np.asarray(w["contact_force_model"]) - force)
                             / np.linalg.norm(force)))
+                    if w.get("follicle_force_axial_model") is not None:
+                        c = np.asarray(tf[k]["centreline"], dtype=float)
+                        t0 = c[1] - c[0]
+                        t0 /= np.linalg.norm(t0)
+                        true_follicle = np.array([-force @ t0,
+                                                  force[1] * t0[0] - force[0] * t0[1]])
+                        got = np.array([w["follicle_force_axial_model"],
+                                        w["follicle_force_lateral_model"]])
+                        follicle_errors.append(float(np.linalg.norm(got - true_follicle)
+                                                     / np.linalg.norm(force)))
+                    elif w["contact_moment_model"] is None:
+                        follicle_errors.append(1.0)
                     if "pammer_moment_model" in w:
                         pammer_errors.append(abs(w["pammer_moment_model"] - true_moment)
                                              / abs(true_moment))
@@ -210,7 +229,16 @@ def main():
             print(f"  beside it, the quasi-static (Pammer) moment from the curvature change: error "
                   f"median {100 * np.median(pe):.1f} %, 90th percentile "
                   f"{100 * np.percentile(pe, 90):.1f} %, within 5 % on {int((pe <= 0.05).sum())}")
+    if follicle_errors:
+        fo = np.asarray(follicle_errors)
+        print(f"  force on the follicle (axial, lateral in the base frame) against the truth's: "
+              f"error median {100 * np.median(fo):.1f} % of the force, 90th percentile "
+              f"{100 * np.percentile(fo, 90):.1f} %, within 10 % on {int((fo <= 0.10).sum())} "
+              f"of {len(fo)}")
     failed = []
+    if args.max_follicle_force_error is not None:
+        if not follicle_errors or np.median(follicle_errors) > args.max_follicle_force_error:
+            failed.append("follicle force error")
     if args.max_contact_moment_error is not None:
         if not moment_errors or np.median(moment_errors) > args.max_contact_moment_error:
             failed.append("contact moment error")

@@ -245,6 +245,12 @@ WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const Whis
   const WhiskerPhysics& ph = options_.readout.physics;
   const double arm_unit = ph.si() ? ph.mm_per_px * 1e-3 : 1.0;
   load.moment = arm_unit * (arm.x() * load.force.y() - arm.y() * load.force.x());
+  // The base tangent of the fitted equilibrium: the rest beam's first chord turned by the
+  // follicle's fitted rotation.
+  const Eigen::Vector2d base =
+      Eigen::Rotation2Dd(fit.state()[2]) * (X.col(1) - X.col(0)).normalized();
+  load.follicle_axial = -load.force.dot(base);
+  load.follicle_lateral = load.force.y() * base.x() - load.force.x() * base.y();
   return load;
 }
 

@@ -91,8 +91,26 @@ struct WhiskerSessionWhisker {
     /// (with a scale, E·I of the cone at p).
     double pammer_force = 0.0;
     double pammer_moment = 0.0;
+    /// The force the whisker exerts on its follicle in the fitted equilibrium (the contact force,
+    /// carried through the whisker: the follicle's reaction is its opposite), in the whisker's
+    /// base frame: axial along the base tangent, positive pushing the whisker into the follicle
+    /// (towards the face); lateral along the base normal (the tangent turned +90°, from +x
+    /// towards +y like base_angle_deg). The base tangent is the fitted one (the follicle's angle
+    /// is a parameter of the fit). Units of force above.
+    double follicle_axial = kNaN;
+    double follicle_lateral = kNaN;
   };
   std::optional<ContactLoad> contact_load;
+  /// The force on the follicle, (axial, lateral) as in ContactLoad, every frame it is known: a
+  /// found contact load's; zero where the whisker touches nothing (no external load holds it, so
+  /// the follicle carries none); none otherwise (not tracked ok, detection did not run, or a
+  /// contact whose load was not found or precedes the rest frame).
+  std::optional<Eigen::Vector2d> follicle_force() const {
+    if (contact_load && contact_load->equilibrium)
+      return Eigen::Vector2d(contact_load->follicle_axial, contact_load->follicle_lateral);
+    if (contact && !contact->touching) return Eigen::Vector2d::Zero();
+    return std::nullopt;
+  }
 };
 
 /// The beam a whisker's contact load is fitted on: the tracked beam's elements, with its shape at

@@ -49,7 +49,8 @@ std::vector<GreyImage> pressed_whisker_frames() {
 
 struct ContactFrames {
   int touching = 0, loads = 0, converged = 0, equilibria = 0, finite = 0;
-  double largest_force_y = 0.0;  // the y component of the largest contact force
+  int untouched = 0, follicle_loads = 0;  // frames touching nothing; follicle forces checked
+  double largest_force_y = 0.0;           // the y component of the largest contact force
 };
 
 ContactFrames run(const WhiskerSessionOptions& options) {
@@ -61,6 +62,11 @@ ContactFrames run(const WhiskerSessionOptions& options) {
     if (!session.started()) return out;
     for (int w = 0; w < session.tracker().num_whiskers(); ++w) {
       const WhiskerSessionWhisker& sw = session.whisker(w);
+      if (sw.contact && !sw.contact->touching) {
+        // Touching nothing, the follicle carries no load.
+        ++out.untouched;
+        EXPECT_TRUE(sw.follicle_force() && sw.follicle_force()->isZero(0.0));
+      }
       if (!sw.contact || !sw.contact->touching) continue;
       ++out.touching;
       if (!sw.contact_load) continue;
@@ -76,6 +82,22 @@ ContactFrames run(const WhiskerSessionOptions& options) {
       }
       // A load is reported exactly when its fit found one.
       EXPECT_EQ(finite, load.equilibrium) << "whisker " << w;
+      // The follicle carries the contact force: the same size, in the base frame (the fitted
+      // follicle angle, up to 6° from the tracked first element's direction t here, so 0.15 F):
+      // axial −F·t, positive into the face; lateral F·n, n = t turned +90°. A wrong axis or
+      // sign would be off by about F.
+      const auto follicle = sw.follicle_force();
+      EXPECT_EQ(follicle.has_value(), load.equilibrium);
+      if (finite && follicle) {
+        ++out.follicle_loads;
+        const Tracker& t = session.tracker().whisker(w);
+        const Eigen::Vector2d base = (t.node_position(1) - t.node_position(0)).normalized();
+        const Eigen::Vector2d normal(-base.y(), base.x());
+        const double F = load.force.norm();
+        EXPECT_NEAR(follicle->norm(), F, 1e-12 * F);
+        EXPECT_NEAR(follicle->x(), -load.force.dot(base), 0.15 * F);
+        EXPECT_NEAR(follicle->y(), load.force.dot(normal), 0.15 * F);
+      }
     }
   }
   return out;
@@ -98,6 +120,8 @@ TEST(WhiskerSession, EveryContactFrameHasAFoundLoadAndOnlyFoundLoadsAreReported)
   EXPECT_EQ(fitted.equilibria, fitted.loads);
   EXPECT_EQ(fitted.finite, fitted.loads);
   EXPECT_LT(fitted.largest_force_y, 0.0) << "the pole pushes towards −y";
+  EXPECT_EQ(fitted.follicle_loads, fitted.loads);
+  EXPECT_GE(fitted.untouched, 6) << "frames before the pole: the follicle's zero load checked";
 
   options.contact_fit.max_iterations = 1;
   const ContactFrames cut = run(options);

@@ -27,7 +27,8 @@ def main():
     want = ["frame", "id", "status", "follicle_x_px", "follicle_y_px", "tip_x_px", "tip_y_px",
             "length_px", "base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m",
             "contact", "contact_arc_length_px", "contact_force_x_N", "contact_force_y_N",
-            "contact_moment_N_m", "pammer_moment_N_m"]
+            "contact_moment_N_m", "pammer_moment_N_m", "follicle_force_axial_N",
+            "follicle_force_lateral_N"]
     failures = []
     if list(d.columns) != want:
         failures.append(f"columns {list(d.columns)}, expected {want}")
@@ -57,6 +58,21 @@ def main():
     # The contact load: on touching rows only (after the rest frame, the first here).
     if ok[ok.contact == 0].contact_moment_N_m.notna().any():
         failures.append("contact_moment_N_m set on a row without contact")
+    # The follicle carries the contact's load (statics: its reaction is the contact force's
+    # opposite), so its two components are the contact force's magnitude; and nothing when the
+    # whisker touches nothing.
+    follicle = ["follicle_force_axial_N", "follicle_force_lateral_N"]
+    if (ok[ok.contact == 0][follicle].abs() > 0).any().any() or \
+            ok[ok.contact == 0][follicle].isna().any().any():
+        failures.append("a row without contact has a follicle force other than 0")
+    loaded = ok[ok.contact_force_x_N.notna()]
+    if len(loaded) and not np.allclose(np.hypot(loaded.follicle_force_axial_N,
+                                                loaded.follicle_force_lateral_N),
+                                       np.hypot(loaded.contact_force_x_N, loaded.contact_force_y_N),
+                                       rtol=1e-6, atol=0):
+        failures.append("the follicle force is not the contact force's size")
+    if (ok.contact_force_x_N.isna() & ok.follicle_force_axial_N.notna() & (ok.contact == 1)).any():
+        failures.append("a follicle force on a touching row without a found contact load")
     # The JSON record of each ok whisker-frame carries the same numbers.
     for _, r in ok.head(50).iterrows():
         w = next(w for w in frames[int(r.frame)] if w["id"] == int(r.id))

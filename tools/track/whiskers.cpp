@@ -193,6 +193,8 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
               nan,
               nan,
               nan,
+              nan,
+              nan,
               nan};
     // Contact with a pole or another object the detection of this frame saw.
     if (sw.contact) {
@@ -225,6 +227,13 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
         values[13] = load.moment;
         values[14] = load.pammer_moment;
       }
+    }
+    // The follicle's load: the contact load's, zero when touching nothing (null if not known).
+    if (const auto f = sw.follicle_force()) {
+      record["follicle_force_axial" + keys.force_unit] = f->x();
+      record["follicle_force_lateral" + keys.force_unit] = f->y();
+      values[15] = f->x();
+      values[16] = f->y();
     }
   }
   return record;
@@ -321,7 +330,9 @@ std::vector<std::string> value_columns_of(const ReadoutKeys& keys) {
           "contact_force_x" + keys.force_unit,
           "contact_force_y" + keys.force_unit,
           "contact_moment" + keys.torque_unit,
-          "pammer_moment" + keys.torque_unit};
+          "pammer_moment" + keys.torque_unit,
+          "follicle_force_axial" + keys.force_unit,
+          "follicle_force_lateral" + keys.force_unit};
 }
 
 // --csv FILE: the table, written to FILE.tmp (renamed when complete), its header first.
