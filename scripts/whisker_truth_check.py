@@ -15,8 +15,7 @@ against the truth's contact force and that force's moment about the true follicl
 
 Prints the figures and exits 1 when any of --require-found, --require-good, --max-base-px,
 --max-contact-arc-px, --max-contact-moment-error, --max-follicle-force-error or the no-swap
-rule fails (so a test can call
-it).
+rule fails (so a test can call it).
 """
 import argparse
 import json

@@ -228,7 +228,7 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
         values[14] = load.pammer_moment;
       }
     }
-    // The follicle's load: the contact load's, zero when touching nothing (null if not known).
+    // The follicle's load: the contact load's, zero when touching nothing (absent if not known).
     if (const auto f = sw.follicle_force()) {
       record["follicle_force_axial" + keys.force_unit] = f->x();
       record["follicle_force_lateral" + keys.force_unit] = f->y();
