@@ -16,7 +16,8 @@ to right, top to bottom, rotated by 180°); four samples per element instead of 
         [--tracker build/release/tools/sinew-track] [--work DIR] [-- extra sinew-track options]
 
 Prints one line per variant (whisker-frames on a ridge, of the tracked and of all, lost, on a
-pole, the tracker's median latency) and the mean and the worst over the variants. Exits 1 when
+pole, identity: follicle jumps and the largest median drift of a follicle from its first
+position, the tracker's median latency) and the mean and the worst over the variants. Exits 1 when
 a run fails or a whisker-frame lies on a pole.
 """
 import argparse
@@ -113,23 +114,33 @@ def main():
         ridge = figure(r"on a dark ridge .*: (\d+) = ([0-9.]+)% of tracked, ([0-9.]+)% of all",
                        out, "on-ridge figure")
         pole = int(figure(r"on a pole or other thick dark object: (\d+)", out, "pole figure")[1])
+        # Identity: follicle jumps between tracked frames and each whisker's median distance from
+        # its first follicle (a whisker taken over by a neighbour drifts by the neighbours' spacing).
+        identity = re.findall(r"(\d+): (\d+), ([0-9.]+) px",
+                              figure(r"follicle jumps .*", out, "identity figures")[0])
+        jumps = sum(int(j) for _, j, _ in identity)
+        drift_id, _, drift = max(identity, key=lambda t: float(t[2]), default=("-", 0, "nan"))
         row = {
             "name": name, "face": face, "frames": frames,
             "tracked": float(ridge[2]), "all": float(ridge[3]),
             "lost": int(total[1]) - int(total[2]), "pole": pole,
             "latency_us": float(latency[1]) if latency else float("nan"),
+            "jumps": jumps, "drift_px": float(drift), "drift_id": drift_id,
         }
         failed = failed or pole > 0
         rows.append(row)
         print(f"{name:11s} face {face:6s} {frames} frames: on a ridge {row['tracked']:5.1f} % of "
               f"tracked, {row['all']:5.1f} % of all; lost {row['lost']}; on a pole {pole}; "
+              f"follicle jumps {jumps}, largest drift {row['drift_px']:.1f} px (id {drift_id}); "
               f"median latency {row['latency_us']:.0f} us", flush=True)
     if rows:
         mean_all = sum(r["all"] for r in rows) / len(rows)
         mean_tracked = sum(r["tracked"] for r in rows) / len(rows)
         worst = min(rows, key=lambda r: r["all"])
+        mean_jumps = sum(r["jumps"] for r in rows) / len(rows)
         print(f"mean over {len(rows)} variants: on a ridge {mean_tracked:.1f} % of tracked, "
-              f"{mean_all:.1f} % of all; worst {worst['all']:.1f} % of all ({worst['name']})")
+              f"{mean_all:.1f} % of all; worst {worst['all']:.1f} % of all ({worst['name']}); "
+              f"follicle jumps {mean_jumps:.0f}")
     if scratch:
         scratch.cleanup()
     sys.exit(1 if failed or not rows else 0)
