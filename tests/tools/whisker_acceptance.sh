@@ -71,12 +71,13 @@ case "$case" in
     "$bin/sinew-track" --input "$video" --whiskers --face left --out "$work/results.jsonl" \
       --overlay "$work/overlay.mp4"
     # Never on the pole. Detection runs on every frame (--redetect every, the default) and lost
-    # whiskers restart on theirs, as do fits that strayed from theirs. On a dark ridge: 96.2 % of
-    # the tracked (ok or not converged) whisker-frames, 90.5 % of all; with OpenCV's AVX2 paths
+    # whiskers restart on theirs, as do fits that strayed from theirs. On a dark ridge: 95.4 % of
+    # the tracked (ok or not converged) whisker-frames, 90.9 % of all; with OpenCV's AVX2 paths
     # off (OPENCV_CPU_DISABLE=AVX2,FMA3, as on an older CPU, where the detection's filters round
-    # differently) 93.0 % and 87.1 %. The bounds leave room for other machines.
+    # differently) 95.1 % and 90.6 %; the video's mirror images (scripts/whisker_variants.py)
+    # 91.6-92.5 % of all. The bounds leave room for other machines.
     "$py" "$src/scripts/whisker_check.py" --video "$video" --results "$work/results.jsonl" \
-      --require 0.90 --require-all 0.84
+      --require 0.90 --require-all 0.87
     ;;
   *)
     echo "unknown case $case" >&2
