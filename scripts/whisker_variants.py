@@ -39,9 +39,13 @@ VARIANTS = {
 }
 
 
-def write_frames(video, flip, out_dir):
-    """Decodes every frame of video once and writes it (flipped) as a lossless PNG sequence."""
-    os.makedirs(out_dir, exist_ok=True)
+def write_frames(video, variants, work):
+    """Decodes every frame of video once and writes it, flipped as each variant asks, as one
+    lossless PNG sequence per variant (work/NAME/frames). Returns the pattern per variant and the
+    frame count."""
+    dirs = {name: os.path.join(work, name, "frames") for name in variants}
+    for d in dirs.values():
+        os.makedirs(d, exist_ok=True)
     cap = cv2.VideoCapture(video)
     if not cap.isOpened():
         sys.exit(f"{video}: cannot open")
@@ -50,13 +54,14 @@ def write_frames(video, flip, out_dir):
         ok, frame = cap.read()
         if not ok:
             break
-        if flip is not None:
-            frame = cv2.flip(frame, flip)
-        cv2.imwrite(os.path.join(out_dir, f"f_{count:05d}.png"), frame)
+        for name, d in dirs.items():
+            flip = VARIANTS[name][0]
+            out = frame if flip is None else cv2.flip(frame, flip)
+            cv2.imwrite(os.path.join(d, f"f_{count:05d}.png"), out)
         count += 1
     if count == 0:
         sys.exit(f"{video}: no frames")
-    return os.path.join(out_dir, "f_%05d.png"), count
+    return {name: os.path.join(d, "f_%05d.png") for name, d in dirs.items()}, count
 
 
 def figure(pattern, text, what):
@@ -89,10 +94,10 @@ def main():
     check = os.path.join(here, "whisker_check.py")
     rows = []
     failed = False
+    patterns, frames = write_frames(args.video, names, work)
     for name in names:
-        flip, sides = VARIANTS[name]
-        face = sides.get(args.face, args.face)
-        pattern, frames = write_frames(args.video, flip, os.path.join(work, name, "frames"))
+        face = VARIANTS[name][1].get(args.face, args.face)
+        pattern = patterns[name]
         results = os.path.join(work, name, "results.jsonl")
         track = subprocess.run([args.tracker, "--input", pattern, "--whiskers", "--face", face,
                                 "--out", results] + args.extra,
