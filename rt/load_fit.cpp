@@ -87,7 +87,7 @@ LoadFit::LoadFit(const common::BeamDescription& beam, LoadFitOptions options)
   const int max_params = per_point_ * options_.max_load_points + base_;
   const int dofs = model_.num_dofs();
   for (Eigen::VectorXd* v : {&u_, &loads_prev_, &rhs_, &du_, &z_, &u_backup_}) v->setZero(dofs);
-  columns_.setZero(dofs, max_params);
+  columns_.setZero(dofs, max_params + 1);  // + the coupled fit's Newton step
   residual_.setZero(3 * n_);
   change_.setZero(3 * n_);
   q_.setZero(max_params);
@@ -149,23 +149,30 @@ void LoadFit::take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked,
   if (base_) u[2] = tracked[2] + q_[params_];
 }
 
-bool LoadFit::parameter_columns() {
+bool LoadFit::parameter_columns(bool newton_step) {
   // Node 0's rotation couples to fine node 1 only (the tangent is block-tridiagonal); the support
   // moved by 1 moves the free dofs by −K_ff⁻¹ K_f,θ0.
   const Eigen::Vector3d base_coupling = tangent_.lower(0).col(2);
   tangent_.apply_fixed_dofs(model_.fixed_mask());
   if (!factor_.factor(tangent_)) return false;
-  for (int j = 0; j < params_ + base_; ++j) {
+  // Every right-hand side first, then one solve for all of them (columns side by side: 0.6x the
+  // time of one solve per column).
+  const int p = params_ + base_;
+  for (int j = 0; j < p; ++j) {
     auto z = columns_.col(j);
     if (j < params_) {
       unit_load(j, z);
-      factor_.solve_in_place(z);
     } else {
       z.setZero();
       z.segment<3>(3) = -base_coupling;
-      factor_.solve_in_place(z);
-      z[2] = 1.0;
     }
+  }
+  if (newton_step) columns_.col(p) = -rhs_;
+  factor_.solve_columns_in_place(columns_.leftCols(newton_step ? p + 1 : p));
+  if (newton_step) du_ = columns_.col(p);
+  for (int j = 0; j < p; ++j) {
+    auto z = columns_.col(j);
+    if (j >= params_) z[2] = 1.0;
     for (int i = 0; i < n_; ++i) {
       jacobian_.block<2, 1>(3 * i, j) = z.segment<2>(3 * parts_ * i);
       jacobian_(3 * i + 2, j) = rotation_scale_ * z[3 * parts_ * i + 2];
@@ -256,9 +263,8 @@ bool LoadFit::coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* ite
     for (int d = 0; d < dofs; ++d) {
       if (fixed[d]) rhs_[d] = 0.0;
     }
-    if (!parameter_columns()) return false;
-    du_ = -rhs_;
-    factor_.solve_in_place(du_);
+    // Jacobian columns and the Newton step −K_T⁻¹r from one factorisation and one solve.
+    if (!parameter_columns(/*newton_step=*/true)) return false;
     z_ = u_ + du_;
     residual(tracked, z_);
     double newton = 0.0;
@@ -314,7 +320,7 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
     if (ok) break;  // the previous update was negligible: this equilibrium is the answer
 
     model_.evaluate(u_, nullptr, nullptr, &tangent_);
-    if (!parameter_columns()) return false;
+    if (!parameter_columns(/*newton_step=*/false)) return false;
     if (!step(true)) return false;
     change_.noalias() = jacobian_.leftCols(p) * dq_.head(p);
     const double change = change_.cwiseAbs().maxCoeff();

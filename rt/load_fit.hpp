@@ -109,7 +109,8 @@ class LoadFit {
   // The Jacobian columns (tangent solves) of every parameter into columns_ and jacobian_, from
   // tangent_ as evaluated (before its fixed dofs are applied), which it factorises into factor_.
   // False when the factorisation fails.
-  bool parameter_columns();
+  // With newton_step, also du_ = −K_T⁻¹ rhs_ (rhs_ zero on fixed dofs) from the same solve.
+  bool parameter_columns(bool newton_step);
 
   LoadFitOptions options_;
   std::string error_;

@@ -124,6 +124,27 @@ void BlockTridiagonalLdlt::solve_in_place(Eigen::Ref<Eigen::VectorXd> b) const {
   }
 }
 
+void BlockTridiagonalLdlt::solve_columns_in_place(Eigen::Ref<Eigen::MatrixXd> B) const {
+  // The single-column solve's recurrences, with the columns innermost: each block step does the
+  // same small products for every column, and the columns' dependency chains run side by side.
+  const int n = static_cast<int>(pivot_.size());
+  const Eigen::Index columns = B.cols();
+  for (int i = 1; i < n; ++i) {
+    const Eigen::Matrix3d& L = multiplier_[i];
+    for (Eigen::Index c = 0; c < columns; ++c) {
+      const Eigen::Vector3d previous = B.col(c).segment<3>(3 * (i - 1));
+      B.col(c).segment<3>(3 * i) -= L * previous;
+    }
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    for (Eigen::Index c = 0; c < columns; ++c) {
+      Eigen::Vector3d xi = pivot_inverse_[i] * B.col(c).segment<3>(3 * i);
+      if (i + 1 < n) xi -= multiplier_[i + 1].transpose() * B.col(c).segment<3>(3 * (i + 1));
+      B.col(c).segment<3>(3 * i) = xi;
+    }
+  }
+}
+
 int BlockTridiagonalLdlt::negative_eigenvalue_count() const {
   int count = 0;
   for (const auto& S : pivot_) {

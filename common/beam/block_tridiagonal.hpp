@@ -62,6 +62,10 @@ class BlockTridiagonalLdlt {
   bool factor(const BlockTridiagonal& A, double pivot_tolerance = 1e-13);
   /// Solves A x = b in place (b holds x on return). Requires a successful factor().
   void solve_in_place(Eigen::Ref<Eigen::VectorXd> b) const;
+  /// Solves A X = B for every column of B at once, in place: one pass over the blocks for all
+  /// columns, whose independent arithmetic overlaps (a load fit's Jacobian columns and Newton
+  /// step; no allocation).
+  void solve_columns_in_place(Eigen::Ref<Eigen::MatrixXd> B) const;
   /// Number of negative eigenvalues of A (Sylvester's law of inertia on the pivot blocks).
   int negative_eigenvalue_count() const;
 
