@@ -317,6 +317,83 @@ TEST(WhiskerReadout, WhiskingWithoutTouchingGivesNoContactAndM0WithinTheImageNoi
   }
 }
 
+// A face whose edge is soft (fur, motion blur) and a whisker that enters it obliquely: along the
+// whisker the fall into the face is ~8 grey levels per pixel. The follicle's search must still find
+// it, or nothing holds the whisker along itself and it slides out of the face (shared video, frame
+// 228: 6-7 per pixel; the follicle slid 12 px a frame with the general 10).
+struct SoftFaceRun {
+  double worst_follicle_px = 0.0;
+  int ok = 0;
+};
+
+SoftFaceRun track_into_a_soft_face(double dark_region_min_step) {
+  const int width = 320, height = 240, frames = 60;
+  // The face: the half-plane left of a line through (60, 120) tilted 35° from vertical; grey 25
+  // inside, the backlight (~150) outside, blurred across the edge by a Gaussian of σ 5 px (the
+  // steepest fall, 10 grey levels per pixel across the edge and 7.6 along the whisker, is on the
+  // line).
+  const Eigen::Vector2d edge_point(60.0, 120.0);
+  const double tilt = 35.0 * M_PI / 180.0;
+  const Eigen::Vector2d outward(std::cos(tilt), std::sin(tilt));
+  SceneWhisker w;
+  w.follicle = edge_point;  // where the fall is steepest
+  w.length = 140.0;
+  w.kappa = 1.0 / 600.0;
+  w.contrast = 12.0;
+  const double rest_angle = tilt + 40.0 * M_PI / 180.0;  // 40° from the edge's normal
+  auto render = [&](int f, SceneWhisker* out) {
+    testing::GreyImage img(width, height, 0);
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        const double back = 140.0 + 30.0 * x / width;
+        const double d = (Eigen::Vector2d(x, y) - edge_point).dot(outward);  // > 0 outside
+        const double cover = 0.5 * std::erfc(d / (5.0 * std::sqrt(2.0)));
+        img.pixels[std::size_t(y) * width + x] =
+            static_cast<std::uint8_t>(std::lround(back * (1.0 - cover) + 25.0 * cover));
+      }
+    }
+    *out = w;
+    // Whisking about the follicle, ±8° at 10 Hz filmed at 500 frames/s.
+    out->angle = rest_angle + 8.0 * M_PI / 180.0 * std::sin(2.0 * M_PI * f / 50.0);
+    testing::draw_whisker(img, *out);
+    std::mt19937 gen(900 + f);
+    testing::add_noise(img, 2.0, gen);
+    return img;
+  };
+  SceneWhisker first;
+  render(0, &first);
+  WhiskerTrackerOptions options;
+  options.tracker.dark_region_min_step = dark_region_min_step;
+  WhiskerTracker tracker({first.points()}, options);
+  EXPECT_TRUE(tracker.valid()) << tracker.error();
+  SoftFaceRun run;
+  for (int f = 0; f < frames; ++f) {
+    SceneWhisker truth;
+    const testing::GreyImage img = render(f, &truth);
+    tracker.track(img.view());
+    run.ok += tracker.result(0).status == FrameStatus::kOk;
+    run.worst_follicle_px =
+        std::max(run.worst_follicle_px, (tracker.result(0).follicle - truth.follicle).norm());
+  }
+  return run;
+}
+
+TEST(WhiskerTracker, TheFollicleStaysOnASoftFaceEdgeThatTheWhiskerEntersObliquely) {
+  const SoftFaceRun now =
+      track_into_a_soft_face(WhiskerTrackerOptions{}.tracker.dark_region_min_step);
+  const SoftFaceRun general = track_into_a_soft_face(10.0);
+  std::cout << "worst follicle distance to the truth over 60 frames: " << now.worst_follicle_px
+            << " px (ok " << now.ok << "); with a 10-grey-level step " << general.worst_follicle_px
+            << " px (ok " << general.ok << ")\n";
+  // Measured: 9.8 px at worst (ok 60): on an edge this soft the fall along the whisker exceeds 6
+  // grey levels per pixel over ±4.5 px, and the follicle takes the nearest such point, ±3-4 px
+  // from frame to frame, but it stays on the face. With 10 it slid: 31 px, ok on 26 frames.
+  EXPECT_EQ(now.ok, 60);
+  EXPECT_LT(now.worst_follicle_px, 12.0);
+  // The scene tells the two apart (the test of the setting can fail).
+  EXPECT_TRUE(general.ok < 60 || general.worst_follicle_px > 20.0);
+}
+
 TEST(WhiskerTracker, AVanishedWhiskerIsNeverOkOnARodThatCrossesWhereItWas) {
   // Whisker 2 is there for 10 frames, then gone while a thin dark rod of the same contrast
   // crosses where it was; it must be lost, never ok on the rod, and its neighbours unaffected.
