@@ -88,7 +88,7 @@ void evaluate_beam_element(const BeamElementReference& ref, const BeamSection& s
 
   // B's rows written out (strain_displacement_from): b0 = ∂e/∂u, b1 = ∂γ/∂u; ∂κ/∂u has two
   // entries, ∓1/L₀ at the rotations. Written entry by entry rather than as Eigen products
-  // (2026-12-04: 69 → 24 ns per element with the tangent; the tracker's Newton steps, its
+  // (2026-12-04: 62–69 → 42 ns per element with the tangent; the tracker's Newton steps, its
   // verification and its load fit evaluate some 350 elements a frame).
   const double L = k.inv_length;
   const double b0[6] = {-k.t.x() * L, -k.t.y() * L, 0.5 * h.gamma,
