@@ -60,6 +60,9 @@ std::optional<std::string> TrackerOptions::validate() const {
     return field_error("line_surround_px", line_surround_px, "must be in [0, 50]");
   }
   if (band_px < 0 || band_px > 10) return field_error("band_px", band_px, "must be in [0, 10]");
+  if (end_band_px < 0 || end_band_px > 10) {
+    return field_error("end_band_px", end_band_px, "must be in [0, 10]");
+  }
   if (!(image_stiffness > 0.0)) {
     return field_error("image_stiffness", image_stiffness, "must be > 0");
   }

@@ -75,6 +75,10 @@ struct TrackerOptions {
   int line_surround_px = 0;
   /// Profile averaged over ±band_px pixels along the tangent (noise ÷ √(2·band + 1)), ≥ 0.
   int band_px = 1;
+  /// End search lines (along the tangent, observe_ends) average over at most ±end_band_px pixels
+  /// across the object, [0, 10]: across a thin object a wide band averages the background into the
+  /// step where it ends (a whisker's fall into the face), so it is set apart from band_px.
+  int end_band_px = 1;
   /// Image term weight relative to the elements' bending stiffness 12·EI/ℓ³ (ℓ below), > 0. Higher
   /// fits in fewer repetitions; lower regularises more per repetition.
   double image_stiffness = 1.0;

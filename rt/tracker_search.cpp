@@ -106,6 +106,7 @@ void Tracker::search(const ImageView& frame, int range_px) {
       line.centre = expected_point(line, p, &line.normal);
       ProfileSearch search = base;
       search.mode = ObservationMode::kEdge;
+      search.band_px = std::min(base.band_px, options_.end_band_px);
       const bool dark = options_.observation == ObservationMode::kDarkLine ||
                         options_.observation == ObservationMode::kDarkRidge ||
                         (options_.observation == ObservationMode::kEdge &&
