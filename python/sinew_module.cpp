@@ -300,6 +300,7 @@ class PyWhiskers {
       d["length_px"] = r.length_px;
       d["on_neighbour"] = r.on_neighbour;
       d["jumped"] = r.jumped;
+      d["out_of_order"] = r.out_of_order;
       d["reacquired"] = r.reacquired;
       d["inlier_fraction"] = r.summary.inlier_fraction;
       const rt::WhiskerSessionWhisker& sw = session_->whisker(w);

@@ -86,6 +86,9 @@ def main():
     ap.add_argument("--require-all", type=float, default=0.0,
                     help="exit 1 when the on-ridge fraction of all whisker-frames (lost ones "
                          "counting as off) is below this")
+    ap.add_argument("--max-jumps", type=int, default=-1,
+                    help="exit 1 when the follicle jumps of all whiskers add up to more than this "
+                         "(-1: no bound)")
     args = ap.parse_args()
 
     frames = {}
@@ -172,6 +175,9 @@ def main():
           "distance from its first follicle): " +
           ", ".join(f"{k}: {jumps[k]}, {drift[k]:.1f} px" for k in sorted(jumps)))
     if fraction < args.require or on_ridge / max(total, 1) < args.require_all or on_pole > 0:
+        sys.exit(1)
+    if args.max_jumps >= 0 and sum(jumps.values()) > args.max_jumps:
+        print(f"follicle jumps {sum(jumps.values())} > {args.max_jumps}")
         sys.exit(1)
 
 

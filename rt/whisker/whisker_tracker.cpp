@@ -143,6 +143,9 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
   if (!(claim_fraction > 0.0 && claim_fraction <= 1.0)) {
     return field_error("claim_fraction", claim_fraction, "must be in (0, 1]");
   }
+  if (!(follicle_order_px >= 0.0)) {
+    return field_error("follicle_order_px", follicle_order_px, "must be >= 0");
+  }
   return std::nullopt;
 }
 
@@ -506,6 +509,52 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
   ++summary.restarted;
 }
 
+Eigen::Vector2d WhiskerTracker::pad_axis() const noexcept {
+  const int n = num_whiskers();
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (int w = 0; w < n; ++w) mean += anchor_follicle_[w];
+  mean /= std::max(n, 1);
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (int w = 0; w < n; ++w) {
+    const Eigen::Vector2d q = anchor_follicle_[w] - mean;
+    cov += q * q.transpose();
+  }
+  if (n < 2) return Eigen::Vector2d(1.0, 0.0);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+  return eig.eigenvectors().col(1);
+}
+
+void WhiskerTracker::keep_follicle_order() noexcept {
+  // The order is the anchors' (where a detection last confirmed each whisker, or its initial
+  // curve): a fit may creep past a neighbour a fraction of a pixel per frame, so the order of
+  // the last frame would not show it.
+  const int n = num_whiskers();
+  const Eigen::Vector2d axis = pad_axis();
+  const double tol = options_.follicle_order_px;
+  // A whisker lost on this frame or the two before still marks where its follicle is (its last
+  // good fit): a neighbour may not pass it while it is not seen.
+  auto marks = [&](int w) { return results_[w].status != FrameStatus::kLost || lost_run_[w] < 3; };
+  for (int a = 0; a < n; ++a) {
+    if (results_[a].status == FrameStatus::kLost) continue;
+    for (int b = 0; b < n; ++b) {
+      if (b == a || !marks(b)) continue;
+      const bool b_kept = results_[b].status != FrameStatus::kLost;
+      if (b_kept && b < a) continue;  // each pair of kept fits once
+      const double anchored = (anchor_follicle_[a] - anchor_follicle_[b]).dot(axis);
+      const double now = (trackers_[a].node_position(0) - trackers_[b].node_position(0)).dot(axis);
+      if (!((anchored > tol && now < -tol) || (anchored < -tol && now > tol))) continue;
+      // Of two kept fits, the one farther from its anchor slid.
+      const double off_a = (trackers_[a].node_position(0) - anchor_follicle_[a]).norm();
+      const double off_b = (trackers_[b].node_position(0) - anchor_follicle_[b]).norm();
+      const int loser = !b_kept || off_a > off_b ? a : b;
+      trackers_[loser].reject_last_frame();
+      results_[loser].status = FrameStatus::kLost;
+      results_[loser].out_of_order = true;
+      if (loser == a) break;
+    }
+  }
+}
+
 void WhiskerTracker::update_geometry() noexcept {
   for (int w = 0; w < num_whiskers(); ++w) {
     const Tracker& t = trackers_[w];
@@ -528,6 +577,7 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
     r.summary = trackers_[w].track(frame);
     r.status = r.summary.status;
     r.on_neighbour = false;
+    r.out_of_order = false;
     r.reacquired = false;
     double moved = 0.0;
     const Eigen::VectorXd& u = trackers_[w].state();
@@ -566,6 +616,7 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
       if (loser == a) break;
     }
   }
+  if (options_.follicle_order_px > 0.0) keep_follicle_order();
   for (int w = 0; w < n; ++w) {
     lost_run_[w] = results_[w].status == FrameStatus::kLost ? lost_run_[w] + 1 : 0;
   }

@@ -69,6 +69,13 @@ struct WhiskerTrackerOptions {
   /// See the header comment.
   double claim_px = 1.5;
   double claim_fraction = 0.5;
+  /// Follicles keep their order along the whisker pad (the principal axis of the follicles a
+  /// detection last confirmed, its anchors): a fit whose follicle lies past a neighbour's by more
+  /// than this, where their anchors lie in the other order by more than this, slid onto another
+  /// whisker; of the two, the one farther from its anchor is discarded and reported lost for the
+  /// frame (a neighbour lost on this frame or the one before marks its place by its last good
+  /// fit), pixels (0: no such test).
+  double follicle_order_px = 1.0;
 
   static TrackerOptions default_tracker_options();
   std::optional<std::string> validate() const;
@@ -79,6 +86,7 @@ struct WhiskerFrame {
   FrameStatus status = FrameStatus::kLost;
   bool on_neighbour = false;  ///< the fit ran onto another whisker and was discarded
   bool jumped = false;        ///< the fit moved more than max_jump_px and was discarded
+  bool out_of_order = false;  ///< its follicle passed a neighbour's along the pad; discarded
   bool reacquired = false;    ///< restarted on its detection by associate() on this frame
   Eigen::Vector2d follicle = Eigen::Vector2d::Zero();  ///< first node
   Eigen::Vector2d tip = Eigen::Vector2d::Zero();       ///< last node
@@ -151,6 +159,10 @@ class WhiskerTracker {
                       double detected_length, WhiskerAssociation& summary);
   // Fraction of whisker a's nodes within claim_px of whisker b's node polyline.
   double fraction_near(int a, int b) const;
+  // The whisker pad's row: the principal axis of the follicles detections last confirmed.
+  Eigen::Vector2d pad_axis() const noexcept;
+  // See WhiskerTrackerOptions::follicle_order_px.
+  void keep_follicle_order() noexcept;
   // Fraction of the points within claim_px of whisker b's node polyline.
   double fraction_near(const Eigen::Matrix2Xd& points, int b) const;
 

@@ -157,6 +157,7 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
                            {"length_px", r.length_px},
                            {"on_neighbour", r.on_neighbour},
                            {"jumped", r.jumped},
+                           {"out_of_order", r.out_of_order},
                            {"reacquired", r.reacquired},
                            {"inlier_fraction", r.summary.inlier_fraction}};
   // The read-out of a lost whisker's last state would be stale: none.
