@@ -346,19 +346,7 @@ std::vector<int> WhiskerTracker::match_detections(
   const int m = static_cast<int>(cand.size());
   // Follicles never change their order along the face. The order is read along the principal
   // axis of the anchored follicles (the whisker pad's row, whatever side the face is on).
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (int w = 0; w < n; ++w) mean += anchor_follicle_[w];
-  mean /= n;
-  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-  for (int w = 0; w < n; ++w) {
-    const Eigen::Vector2d q = anchor_follicle_[w] - mean;
-    cov += q * q.transpose();
-  }
-  Eigen::Vector2d axis(1.0, 0.0);
-  if (n >= 2) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
-    axis = eig.eigenvectors().col(1);
-  }
+  const Eigen::Vector2d axis = pad_axis();
   std::vector<int> order_w(n), order_d(m);
   for (int w = 0; w < n; ++w) order_w[w] = w;
   for (int k = 0; k < m; ++k) order_d[k] = cand[k];
@@ -511,15 +499,15 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
 
 Eigen::Vector2d WhiskerTracker::pad_axis() const noexcept {
   const int n = num_whiskers();
+  if (n < 2) return Eigen::Vector2d(1.0, 0.0);
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   for (int w = 0; w < n; ++w) mean += anchor_follicle_[w];
-  mean /= std::max(n, 1);
+  mean /= n;
   Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
   for (int w = 0; w < n; ++w) {
     const Eigen::Vector2d q = anchor_follicle_[w] - mean;
     cov += q * q.transpose();
   }
-  if (n < 2) return Eigen::Vector2d(1.0, 0.0);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
   return eig.eigenvectors().col(1);
 }

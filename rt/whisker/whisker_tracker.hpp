@@ -73,7 +73,7 @@ struct WhiskerTrackerOptions {
   /// detection last confirmed, its anchors): a fit whose follicle lies past a neighbour's by more
   /// than this, where their anchors lie in the other order by more than this, slid onto another
   /// whisker; of the two, the one farther from its anchor is discarded and reported lost for the
-  /// frame (a neighbour lost on this frame or the one before marks its place by its last good
+  /// frame (a neighbour lost on this frame or the two before marks its place by its last good
   /// fit), pixels (0: no such test).
   double follicle_order_px = 1.0;
 
