@@ -3,6 +3,7 @@
 #include "common/detail/field_error.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -126,6 +127,8 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
     return field_error("associate_follicle_px", associate_follicle_px, "must be > 0");
   if (!(associate_angle_deg > 0.0))
     return field_error("associate_angle_deg", associate_angle_deg, "must be > 0");
+  if (!(associate_home_px >= 0.0))
+    return field_error("associate_home_px", associate_home_px, "must be >= 0");
   if (!(reacquire_radius_px > 0.0))
     return field_error("reacquire_radius_px", reacquire_radius_px, "must be > 0");
   if (!(associate_min_length_fraction >= 0.0 && associate_min_length_fraction <= 1.0)) {
@@ -191,7 +194,9 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
   boxes_.resize(trackers_.size());
   anchor_follicle_.resize(trackers_.size());
   anchor_direction_.resize(trackers_.size());
+  home_follicle_.resize(trackers_.size());
   for (std::size_t w = 0; w < trackers_.size(); ++w) {
+    home_follicle_[w] = whiskers[w].front();
     anchor_follicle_[w] = whiskers[w].front();
     anchor_direction_[w] =
         direction_at_start(whiskers[w], first_element_length(static_cast<int>(w)));
@@ -379,10 +384,38 @@ std::vector<int> WhiskerTracker::match_detections(
       }
     }
   }
+  // Where each whisker's first follicle lies now: the first follicles moved by the rigid motion
+  // (least squares) that brings them onto the anchors.
+  std::vector<Eigen::Vector2d> home(n);
+  {
+    Eigen::Vector2d mh = Eigen::Vector2d::Zero(), ma = Eigen::Vector2d::Zero();
+    for (int w = 0; w < n; ++w) {
+      mh += home_follicle_[w];
+      ma += fw[w];
+    }
+    mh /= n;
+    ma /= n;
+    double sc = 0.0, ss = 0.0;  // Σ h·a and Σ h×a of the centred points
+    for (int w = 0; w < n; ++w) {
+      const Eigen::Vector2d h = home_follicle_[w] - mh, a = fw[w] - ma;
+      sc += h.dot(a);
+      ss += h.x() * a.y() - h.y() * a.x();
+    }
+    const double phi = n > 1 ? std::atan2(ss, sc) : 0.0;
+    const Eigen::Rotation2Dd rotation(phi);
+    for (int w = 0; w < n; ++w) home[w] = ma + rotation * (home_follicle_[w] - mh);
+  }
+  const double hs = options_.associate_home_px;
   auto pair_cost = [&](int i, int k, const Eigen::Vector2d& shift) {
-    const double dist = (fw[order_w[i]] + shift - detected[order_d[k]].front()).norm() / fs;
+    const Eigen::Vector2d d = detected[order_d[k]].front();
+    const double dist = (fw[order_w[i]] + shift - d).norm() / fs;
     const double ang = angle[i * m + k] / as;
-    return dist * dist + ang * ang;
+    double cost = dist * dist + ang * ang;
+    if (hs > 0.0) {
+      const double far = (home[order_w[i]] + shift - d).norm() / hs;
+      cost += far * far;
+    }
+    return cost;
   };
   // Order-preserving matching (skips allowed on both sides) by dynamic programming: a pair is
   // taken when its cost is below 1 (a skip on each side costs 1/2).

@@ -52,6 +52,10 @@ struct WhiskerTrackerOptions {
   /// degrees, > 0; and how near a fit's nodes must lie to its detection to be kept, pixels.
   double associate_follicle_px = 10.0;
   double associate_angle_deg = 30.0;
+  /// Identities do not walk along the pad: a detection also costs by its distance from where the
+  /// whisker's first follicle lies now (the first follicles moved rigidly onto the anchors, as the
+  /// head moves), as much as leaving it unmatched at this distance, pixels (0: not used).
+  double associate_home_px = 0.0;
   double reacquire_radius_px = 30.0;
   double associate_on_px = 3.0;
   /// A detection shorter than this fraction of a whisker's length is not matched to it, and one
@@ -114,6 +118,9 @@ class WhiskerTracker {
   int num_whiskers() const { return static_cast<int>(trackers_.size()); }
   const Tracker& whisker(int i) const { return trackers_[i]; }
   const WhiskerFrame& result(int i) const { return results_[i]; }
+  /// Where a detection last confirmed whisker i (its first frame's follicle until then): what
+  /// associate() matches it from.
+  const Eigen::Vector2d& anchor_follicle(int i) const { return anchor_follicle_[i]; }
 
   /// Tracks every whisker on one frame; returns the wall time in seconds. No allocation.
   double track(const ImageView& frame) noexcept;
@@ -176,6 +183,8 @@ class WhiskerTracker {
   std::vector<Eigen::AlignedBox2d> boxes_;  // each fit's node bounding box, claim_px/2 wider
   // Where a detection last confirmed each whisker: follicle and first direction.
   std::vector<Eigen::Vector2d> anchor_follicle_, anchor_direction_;
+  // Each whisker's follicle on the first frame (associate_home_px).
+  std::vector<Eigen::Vector2d> home_follicle_;
 };
 
 }  // namespace sinew::rt

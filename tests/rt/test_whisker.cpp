@@ -590,6 +590,74 @@ TEST(WhiskerTracker, AVanishedWhiskerIsNeverOkOnARodThatCrossesWhereItWas) {
   }
 }
 
+// A dense cluster where detection sees the neighbours of a tracked whisker but, frame after
+// frame, not the whisker itself (on the shared video, the dense cluster's whiskers converge and
+// their traces are dropped as not smooth): association takes the nearest neighbour's detection
+// for it, and the whisker's anchor (where a detection last confirmed it, what the next frame is
+// matched from and a lost whisker restarts on) walks along the cluster. associate_home_px bounds
+// the walk by the whisker's first follicle.
+TEST(WhiskerTracker, AHomeFollicleKeepsAWhiskerFromWalkingAlongADenseCluster) {
+  const Eigen::Vector2d centre(-60.0, 150.0);
+  const double radius = 150.0;
+  std::vector<SceneWhisker> all;
+  for (double phi : {-0.45, -0.25, 0.0, 0.05, 0.10, 0.15, 0.20, 0.45}) {
+    SceneWhisker w;
+    w.follicle = centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi));
+    w.angle = 0.2 + (phi < -0.1 || phi > 0.3 ? phi : 0.0);  // the cluster's whiskers parallel
+    w.kappa = 0.0;
+    w.length = 120.0;
+    w.contrast = 14.0;
+    all.push_back(w);
+  }
+  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
+  for (const auto& w : all) testing::draw_whisker(image, w);
+  std::mt19937 gen(3);
+  testing::add_noise(image, 4.0, gen);
+  // Tracked: two whiskers above the cluster, its first one (the walker) and one below; the
+  // cluster's other whiskers are not.
+  const std::vector<int> tracked = {0, 1, 2, 7};
+  const int walker = 2;
+
+  auto walk = [&](double home_px) {
+    WhiskerTrackerOptions o;
+    o.associate_home_px = home_px;
+    std::vector<std::vector<Eigen::Vector2d>> init;
+    for (int k : tracked) init.push_back(all[k].points());
+    WhiskerTracker tracker(init, o);
+    EXPECT_TRUE(tracker.valid()) << tracker.error();
+    double farthest = 0.0;
+    for (int f = 0; f < 6; ++f) {
+      tracker.track(image.view());
+      // Every whisker is detected but the one the walker is anchored on.
+      const Eigen::Vector2d at = tracker.anchor_follicle(walker);
+      int on = 0;
+      for (int k = 1; k < static_cast<int>(all.size()); ++k) {
+        if ((all[k].follicle - at).norm() < (all[on].follicle - at).norm()) on = k;
+      }
+      std::vector<std::vector<Eigen::Vector2d>> detected;
+      for (int k = 0; k < static_cast<int>(all.size()); ++k) {
+        if (k != on) detected.push_back(all[k].points());
+      }
+      tracker.associate(image.view(), detected);
+      farthest =
+          std::max(farthest, (tracker.anchor_follicle(walker) - all[walker].follicle).norm());
+      // The whiskers that are detected stay on their own.
+      for (int t : {0, 1, 3}) {
+        EXPECT_LT((tracker.anchor_follicle(t) - all[tracked[t]].follicle).norm(), 1.0)
+            << "whisker " << t << ", frame " << f;
+      }
+    }
+    return farthest;
+  };
+  const double free_walk = walk(0.0), bounded = walk(15.0);
+  std::cout << "farthest the walker's anchor went from its own follicle: " << free_walk
+            << " px without a home, " << bounded << " px with associate_home_px 15\n";
+  // The cluster's whiskers lie 7.5 px apart: without a home the walker's anchor crosses
+  // several of them, with one at most one.
+  EXPECT_GT(free_walk, 20.0);
+  EXPECT_LT(bounded, 10.0);
+}
+
 TEST(WhiskerTracker, AssociationKeepsIdentitiesWhenTheHeadMovesFurtherThanTheSearchReaches) {
   // A 30 frames/s camera: between two frames the head moves 16 px and the whiskers turn 12°,
   // further than a whisker's search reaches. Detection on the new frame and associate() must put

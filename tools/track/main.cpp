@@ -431,6 +431,7 @@ int main(int argc, char** argv) {
   std::string face = "auto";
   double min_length = 40.0;
   bool repair_traces = false;
+  double associate_home_px = 0.0;
   std::string redetect = "every";
   sinew::rt::WhiskerReadoutOptions readout;
   std::vector<double> curvature_window;
@@ -445,6 +446,12 @@ int main(int argc, char** argv) {
   app.add_flag("--repair-traces", repair_traces,
                "--whiskers: cut traces that hop between converging whiskers and extend them to "
                "the face (finds more whiskers in a dense pad; see docs/tracker.md)");
+  app.add_option("--associate-home-px", associate_home_px,
+                 "--whiskers: keep identities from walking along a dense pad: a detection also "
+                 "costs by its distance from the whisker's first follicle (moved with the head); "
+                 "15 holds the shared video's identities but tracks fewer whisker-frames on a "
+                 "ridge (docs/tracker.md); 0 (default) off")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--redetect", redetect,
                  "--whiskers: detect again after tracking on every frame (default; cameras "
                  "below ~200 fps, whose whiskers move further than the search reaches), only on "
@@ -529,6 +536,7 @@ int main(int argc, char** argv) {
       w.quiet = args.quiet;
       w.min_length_px = min_length;
       w.repair_traces = repair_traces;
+      w.associate_home_px = associate_home_px;
       w.redetect = redetect;
       w.rest_frame = rest_frame;
       w.rest_frames = rest_frames;

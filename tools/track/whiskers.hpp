@@ -16,7 +16,8 @@ struct WhiskerTrackArgs {
   int first = 0, stride = 1, count = -1;
   bool quiet = false;
   double min_length_px = 40.0;
-  bool repair_traces = false;  ///< rt::WhiskerDetectionOptions::repair_traces
+  bool repair_traces = false;      ///< rt::WhiskerDetectionOptions::repair_traces
+  double associate_home_px = 0.0;  ///< rt::WhiskerTrackerOptions::associate_home_px
   /// Detection after tracking, for rt::WhiskerTracker::associate: "every" frame (a 25–100 fps
   /// camera, whose whiskers move further between frames than the search reaches), only on frames
   /// with a "lost" whisker (a high-speed camera), or "never".
