@@ -29,11 +29,11 @@ def pad(tmp_path_factory):
     lines = [json.loads(line) for line in open(results)]
     frames = [cv2.imread(str(out / f"frames/f_{k:04d}.png"), cv2.IMREAD_GRAYSCALE)
               for k in range(FRAMES)]
-    return lines[0]["detection"], [line for line in lines if "whiskers" in line], frames
+    return lines[0]["detection"], [line for line in lines if "whiskers" in line], frames, out
 
 
 def test_same_whiskers_as_sinew_track(pad):
-    detection, expected, frames = pad
+    detection, expected, frames, _ = pad
     whiskers = sinew.Whiskers(face="left")
     assert whiskers.detection is None
     compared = 0
@@ -60,7 +60,7 @@ def test_same_whiskers_as_sinew_track(pad):
 def test_detect_whiskers_on_one_frame(pad):
     """sinew.detect_whiskers finds on the first frame what sinew-track found there, and with
     keep_rejected says why the other traces were not whiskers."""
-    detection, _, frames = pad
+    detection, _, frames, _ = pad
     found = sinew.detect_whiskers(frames[0], face="left", keep_rejected=True)
     assert found["face"] == "left"
     assert len(found["whiskers"]) == len(detection["whiskers"]) >= 8
@@ -75,7 +75,26 @@ def test_detect_whiskers_on_one_frame(pad):
         sinew.detect_whiskers(frames[0], face="right")
 
 
+def test_home_follicles_as_sinew_track(pad):
+    """associate_home_px reaches the tracker the same way from Python and from the command line."""
+    _, _, frames, out = pad
+    results = out / "home.jsonl"
+    subprocess.run([os.path.join(BIN, "sinew-track"), "--input", str(out / "frames/f_%04d.png"),
+                    "--whiskers", "--face", "left", "--associate-home-px", "15", "--out",
+                    str(results), "--quiet"], check=True, capture_output=True)
+    expected = [json.loads(line) for line in open(results)]
+    expected = [line for line in expected if "whiskers" in line]
+    whiskers = sinew.Whiskers(face="left", associate_home_px=15)
+    for frame, want in zip(frames, expected):
+        got = whiskers.track(frame)
+        assert [g["status"] for g in got["whiskers"]] == [w["status"] for w in want["whiskers"]]
+        for g, w in zip(got["whiskers"], want["whiskers"]):
+            np.testing.assert_allclose(g["nodes"], np.asarray(w["nodes"]), rtol=0, atol=1e-9)
+
+
 def test_bad_options_raise():
+    with pytest.raises(ValueError, match="associate_home_px"):
+        sinew.Whiskers(associate_home_px=-1)
     with pytest.raises(ValueError, match="face"):
         sinew.Whiskers(face="sideways")
     with pytest.raises(ValueError, match="base_radius_um"):
