@@ -77,6 +77,24 @@ __attribute__((target("avx2"))) int walk_avx2(const ImageView& image, const Prof
   }
   return k;
 }
+
+// All `count` samples (count ≥ 8): the blocks of eight, then one more block ending at the last
+// sample, overlapping the previous one. The overlap is computed twice with the same integers, so
+// the profile is the same as the portable walk's; a search line's 23 samples take three blocks
+// instead of two blocks and seven scalar samples of nine rows each (those cost as much as the
+// blocks: 13 % of a whisker tracker's time).
+__attribute__((target("avx2"))) void walk_avx2_all(const ImageView& image, const ProfileWalk& w,
+                                                   int count, float* profile) {
+  const int done = walk_avx2(image, w, count, profile);
+  if (done == count) return;
+  ProfileWalk tail = w;
+  const int first = count - 8;
+  for (int r = 0; r < w.rows; ++r) {
+    tail.x[r] = w.x[r] + first * w.dx;
+    tail.y[r] = w.y[r] + first * w.dy;
+  }
+  walk_avx2(image, tail, 8, profile + first);
+}
 #endif
 
 }  // namespace
@@ -94,7 +112,13 @@ void walk_profile(const ImageView& image, const ProfileWalk& walk, int count, fl
                   bool use_avx2) {
   int done = 0;
 #ifdef SINEW_PROFILE_AVX2
-  if (use_avx2 && avx2_available()) done = walk_avx2(image, walk, count, profile);
+  if (use_avx2 && avx2_available()) {
+    if (count >= 8) {
+      walk_avx2_all(image, walk, count, profile);
+      return;
+    }
+    done = walk_avx2(image, walk, count, profile);
+  }
 #else
   (void)use_avx2;
 #endif
