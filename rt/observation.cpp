@@ -6,6 +6,10 @@
 #include <cstdint>
 #include <limits>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 namespace sinew::rt {
 
 void sample_profile(const ImageView& image, const Eigen::Vector2d& centre,
@@ -90,34 +94,56 @@ int find_candidates(const float* profile, int origin, float shift, const Profile
   const int range = search.range_px;
   const int s = search.line_surround_px;
   const int begin = origin - range - 1, end = origin + range + 1;
+  // The response loops below write `response` while reading `profile`; the two never overlap
+  // (callers pass separate halves of a scratch buffer), and saying so lets them vectorise.
+  const float* __restrict in = profile;
+  float* __restrict out_response = response;
   // One branch-free loop per mode (vectorised by the compiler).
   if (search.mode == ObservationMode::kEdge) {
     const float sign = 0.5f * static_cast<float>(search.expected_sign);
     if (search.expected_sign == 0) {
-      for (int k = begin; k <= end; ++k)
-        response[k] = 0.5f * std::abs(profile[k + 1] - profile[k - 1]);
+      for (int k = begin; k <= end; ++k) out_response[k] = 0.5f * std::abs(in[k + 1] - in[k - 1]);
     } else {
-      for (int k = begin; k <= end; ++k) response[k] = sign * (profile[k + 1] - profile[k - 1]);
+      for (int k = begin; k <= end; ++k) out_response[k] = sign * (in[k + 1] - in[k - 1]);
     }
   } else if (search.mode == ObservationMode::kDarkRidge) {
     // Both sides must be brighter than the centre: the darker side bounds the depth, so an edge
     // (one side as dark as the centre) answers ~0; relative to the brighter side, so the same
     // whisker answers the same under a bright or a dim part of the backlight.
-    for (int k = begin; k <= end; ++k) {
-      const float left = profile[k - s], right = profile[k + s];
-      const float centre_value = 0.25f * (profile[k - 1] + 2.0f * profile[k] + profile[k + 1]);
+    const float min_background = search.min_background;
+    int k = begin;
+#ifdef __SSE2__
+    // Four offsets at a time: SSE2 is part of x86-64, and min/max/compare/and give the same
+    // floats as the scalar loop's comparisons (NaN included), so the two agree bit for bit.
+    const __m128 quarter = _mm_set1_ps(0.25f), two = _mm_set1_ps(2.0f),
+                 hundred = _mm_set1_ps(100.0f);
+    const __m128 one = _mm_set1_ps(1.0f), background = _mm_set1_ps(min_background);
+    for (; k + 3 <= end; k += 4) {
+      const __m128 left = _mm_loadu_ps(in + k - s), right = _mm_loadu_ps(in + k + s);
+      const __m128 centre_value = _mm_mul_ps(
+          quarter,
+          _mm_add_ps(_mm_add_ps(_mm_loadu_ps(in + k - 1), _mm_mul_ps(two, _mm_loadu_ps(in + k))),
+                     _mm_loadu_ps(in + k + 1)));
+      const __m128 lo = _mm_min_ps(left, right), hi = _mm_max_ps(right, left);
+      const __m128 depth =
+          _mm_div_ps(_mm_mul_ps(hundred, _mm_sub_ps(lo, centre_value)), _mm_max_ps(hi, one));
+      _mm_storeu_ps(out_response + k, _mm_and_ps(_mm_cmpge_ps(hi, background), depth));
+    }
+#endif
+    for (; k <= end; ++k) {
+      const float left = in[k - s], right = in[k + s];
+      const float centre_value = 0.25f * (in[k - 1] + 2.0f * in[k] + in[k + 1]);
       const float lo = left < right ? left : right, hi = left < right ? right : left;
-      response[k] = hi >= search.min_background
-                        ? 100.0f * (lo - centre_value) / (hi > 1.0f ? hi : 1.0f)
-                        : 0.0f;
+      out_response[k] =
+          hi >= min_background ? 100.0f * (lo - centre_value) / (hi > 1.0f ? hi : 1.0f) : 0.0f;
     }
   } else {
     // > 0 at a dark line.
     const float sign = search.mode == ObservationMode::kDarkLine ? 1.0f : -1.0f;
     for (int k = begin; k <= end; ++k) {
-      const float surround = 0.5f * (profile[k - s] + profile[k + s]);
-      const float centre_value = 0.25f * (profile[k - 1] + 2.0f * profile[k] + profile[k + 1]);
-      response[k] = sign * (surround - centre_value);
+      const float surround = 0.5f * (in[k - s] + in[k + s]);
+      const float centre_value = 0.25f * (in[k - 1] + 2.0f * in[k] + in[k + 1]);
+      out_response[k] = sign * (surround - centre_value);
     }
   }
 

@@ -1,5 +1,6 @@
 /// rt/detail/profile_walk and sample_profile: the AVX2 kernel gives the portable kernel's profile
-/// bit for bit, and the fixed-point fast path agrees with a float bilinear reference to 1/256 px.
+/// bit for bit, and the fixed-point fast path agrees with a float bilinear reference to 1/256 px;
+/// the vectorised ridge response of find_candidates is its scalar formula at every offset.
 #include "rt/detail/profile_walk.hpp"
 
 #include <gtest/gtest.h>
@@ -78,6 +79,44 @@ TEST(ProfileWalk, FastPathMatchesFloatBilinearAndBorderLinesFallBack) {
       } else {
         // Positions rounded to 1/256 px: at most 255·(2/256) grey levels per bilinear sample.
         EXPECT_NEAR(profile[k], sum / (2 * band + 1), 2.0) << "k " << k;
+      }
+    }
+  }
+}
+
+TEST(FindCandidates, RidgeResponseIsTheScalarFormulaAtEveryOffset) {
+  // The dark-ridge response is computed four offsets at a time on x86-64; every offset must be
+  // the formula's float (its candidates are the tracker's observations), NaN samples and profiles
+  // darker than the background bound included.
+  std::mt19937 gen(5);
+  std::uniform_real_distribution<float> grey(0.0f, 255.0f), coin(0.0f, 1.0f);
+  for (int trial = 0; trial < 300; ++trial) {
+    ProfileSearch search;
+    search.mode = ObservationMode::kDarkRidge;
+    search.range_px = 3 + trial % 9;
+    search.line_surround_px = 1 + trial % 4;
+    search.min_background = trial % 3 == 0 ? 0.0f : 60.0f;
+    search.min_strength = -1e9f;  // every local maximum is a candidate
+    const int half = search.range_px + search.margin();
+    std::vector<float> profile(2 * half + 1), response(profile.size(), -7.0f);
+    for (float& v : profile) {
+      v = grey(gen);
+      if (coin(gen) < 0.03f) v = std::nanf("");
+    }
+    Candidate out[3];
+    find_candidates(profile.data(), half, 0.0f, search, response.data(), out);
+    const int s = search.line_surround_px;
+    for (int k = half - search.range_px - 1; k <= half + search.range_px + 1; ++k) {
+      const float left = profile[k - s], right = profile[k + s];
+      const float centre_value = 0.25f * (profile[k - 1] + 2.0f * profile[k] + profile[k + 1]);
+      const float lo = left < right ? left : right, hi = left < right ? right : left;
+      const float expected = hi >= search.min_background
+                                 ? 100.0f * (lo - centre_value) / (hi > 1.0f ? hi : 1.0f)
+                                 : 0.0f;
+      if (std::isnan(expected)) {
+        EXPECT_TRUE(std::isnan(response[k])) << "trial " << trial << " k " << k;
+      } else {
+        EXPECT_EQ(response[k], expected) << "trial " << trial << " k " << k;
       }
     }
   }
