@@ -203,20 +203,31 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
   }
 }
 
-double WhiskerTracker::fraction_near(int a, int b) const {
+bool WhiskerTracker::mostly_near(int a, int b) const {
+  // Whether more than claim_fraction of whisker a's nodes lie within claim_px of whisker b's node
+  // polyline. A node outside b's box widened to claim_px is far without a distance; the count
+  // stops as soon as the answer is known (whiskers that fan out from the pad decide within their
+  // first nodes).
   const Tracker& ta = trackers_[a];
   const Tracker& tb = trackers_[b];
   const double limit_sq = options_.claim_px * options_.claim_px;
+  const Eigen::Vector2d widen = Eigen::Vector2d::Constant(0.5 * options_.claim_px);
+  const Eigen::AlignedBox2d reach(boxes_[b].min() - widen, boxes_[b].max() + widen);
+  const int n = ta.num_nodes();
+  const double needed = options_.claim_fraction * n;  // near must exceed this
   int near = 0;
-  for (int i = 0; i < ta.num_nodes(); ++i) {
+  for (int i = 0; i < n; ++i) {
+    if (near + (n - i) <= needed) return false;  // even all the rest would not be enough
     const Eigen::Vector2d p = ta.node_position(i);
+    if (!reach.contains(p)) continue;
     double best = std::numeric_limits<double>::infinity();
     for (int j = 0; j + 1 < tb.num_nodes() && best > limit_sq; ++j) {
       best = std::min(best, segment_distance_sq(p, tb.node_position(j), tb.node_position(j + 1)));
     }
     near += best <= limit_sq;
+    if (near > needed) return true;
   }
-  return static_cast<double>(near) / ta.num_nodes();
+  return near > needed;
 }
 
 double WhiskerTracker::fraction_near(const Eigen::Matrix2Xd& points, int b) const {
@@ -627,7 +638,7 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
     for (int b = 0; b < n; ++b) {
       if (b == a || results_[b].status == FrameStatus::kLost) continue;
       // Fits whose bounding boxes lie apart by more than claim_px share no node.
-      if (!boxes_[a].intersects(boxes_[b]) || fraction_near(a, b) <= options_.claim_fraction) {
+      if (!boxes_[a].intersects(boxes_[b]) || !mostly_near(a, b)) {
         continue;
       }
       const int loser = moved_px_[a] > moved_px_[b] ? a : b;

@@ -164,8 +164,9 @@ class WhiskerTracker {
   bool on_detection(int w, const std::vector<Eigen::Vector2d>& pts) const;
   void take_detection(int w, const ImageView& frame, const std::vector<Eigen::Vector2d>& pts,
                       double detected_length, WhiskerAssociation& summary);
-  // Fraction of whisker a's nodes within claim_px of whisker b's node polyline.
-  double fraction_near(int a, int b) const;
+  // Whether more than claim_fraction of whisker a's nodes lie within claim_px of whisker b's node
+  // polyline (reads boxes_ of this frame).
+  bool mostly_near(int a, int b) const;
   // The whisker pad's row: the principal axis of the follicles detections last confirmed.
   Eigen::Vector2d pad_axis() const noexcept;
   // See WhiskerTrackerOptions::follicle_order_px.
