@@ -78,6 +78,9 @@ std::optional<std::string> TrackerOptions::validate() const {
   }
   if (!(convergence_px > 0.0)) return field_error("convergence_px", convergence_px, "must be > 0");
   if (!(research_px >= 0.0)) return field_error("research_px", research_px, "must be >= 0");
+  if (!(start_clearance_px >= 0.0)) {
+    return field_error("start_clearance_px", start_clearance_px, "must be >= 0");
+  }
   if (!(predictable_px >= 0.0)) {
     return field_error("predictable_px", predictable_px, "must be >= 0");
   }
@@ -199,9 +202,14 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   double stiffness = 0.0, mean_length = 0.0;
   const double min_image_length = options_.min_image_length_px > 0.0 ? options_.min_image_length_px
                                                                      : 4.0 * options_.half_width_px;
+  // Arc length from the first node within which no line along a normal is placed.
+  const double clearance =
+      start_free && options_.start_end == StartEnd::kDarkRegion ? options_.start_clearance_px : 0.0;
+  double s0 = 0.0;  // arc length of the element's first node
   for (int e = 0; e < elements; ++e) {
     for (int s = 0; s < options_.samples_per_element; ++s) {
       const float xi = static_cast<float>((s + 0.5) / options_.samples_per_element);
+      if (s0 + xi * model_.element(e).length < clearance) continue;
       sample_points_.push_back({e, xi});
       for (int side = 0; side < sides_; ++side) {
         SearchLine& line = lines_[l++];
@@ -216,6 +224,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     const double ell = std::max(L0, min_image_length);
     stiffness += 12.0 * model_.description().sections[e].EI / (ell * ell * ell) * (L0 / ell);
     mean_length += L0;
+    s0 += L0;
   }
   if (start_free) {
     sample_points_.push_back({0, 0.0});
@@ -231,6 +240,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     lines_[l].point = static_cast<int>(sample_points_.size()) - 1;
     lines_[l++].end = 1;
   }
+  lines_.resize(l);  // fewer when start_clearance_px left some out
   points_.resize(sample_points_.size());
   stiffness /= elements;
   mean_length /= elements;

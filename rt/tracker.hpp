@@ -122,6 +122,14 @@ struct TrackerOptions {
   /// tip, whose contrast fades to nothing) is not observed along the tangent: the beam's axial
   /// stiffness keeps its length.
   StartEnd start_end = StartEnd::kObjectEnd;
+  /// kDarkRegion: no search line along a normal within this arc length of the first node,
+  /// pixels, ≥ 0. Next to the dark region its soft edge darkens one side of a line's profile
+  /// where the object leaves it obliquely, and the ridge found there moves sideways with the
+  /// angle between them: the base's tangent turns more or less than the object (rendered whiskers
+  /// turning rigidly about their follicles: 0.89 and 1.05–1.09 of the true turn; with 6 px
+  /// 1.006 and 0.99–1.04). The first node is still held along the object by its end search and
+  /// sideways by the lines beyond.
+  double start_clearance_px = 0.0;
   /// Weight of an end search line relative to a search line along a normal, > 0. A free beam is
   /// held along itself by its end observations alone, against the whole length's normal lines.
   double end_weight = 1.0;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <tuple>
 
@@ -358,6 +359,68 @@ TEST(WhiskerReadout, WhiskingWithoutTouchingGivesNoContactAndM0WithinTheImageNoi
     // fit's residual 0.19 px), RMS 1.1–1.7.
     EXPECT_LT(worst, bound) << "whisker " << k;
   }
+}
+
+// The follicle angle of whiskers that turn rigidly about their follicles (±10° at 10 Hz, 500
+// frames/s, no load): the slope of the tracked base angle against the true turn, per whisker.
+// Search lines next to the face see its soft edge on one side where the whisker leaves it
+// obliquely, and the base's tangent turns more or less than the whisker; start_clearance_px
+// keeps them off.
+std::vector<double> follicle_angle_slopes(double start_clearance_px) {
+  const int frames = 50;
+  std::vector<Scene> scenes;
+  std::vector<double> turn_deg;
+  for (int f = 0; f < frames; ++f) {
+    turn_deg.push_back(10.0 * std::sin(2.0 * M_PI * f / 50.0));
+    scenes.push_back(scene(turn_deg.back() * M_PI / 180.0, 700 + f));
+  }
+  std::vector<std::vector<Eigen::Vector2d>> init;
+  for (const auto& w : scenes[0].whiskers) init.push_back(w.points());
+  WhiskerTrackerOptions options;
+  options.tracker.start_clearance_px = start_clearance_px;
+  WhiskerTracker tracker(init, options);
+  EXPECT_TRUE(tracker.valid()) << tracker.error();
+  std::vector<WhiskerReadoutModel> readouts;
+  for (int k = 0; k < 5; ++k)
+    readouts.emplace_back(tracker.whisker(k).model(), WhiskerReadoutOptions{});
+  std::vector<std::vector<double>> angle(5);
+  for (int f = 0; f < frames; ++f) {
+    tracker.track(scenes[f].image.view());
+    for (int k = 0; k < 5; ++k) {
+      EXPECT_EQ(tracker.result(k).status, FrameStatus::kOk) << "frame " << f << " whisker " << k;
+      angle[k].push_back(readouts[k].evaluate(tracker.whisker(k).state()).base_angle_deg);
+    }
+  }
+  std::vector<double> slopes;
+  const double mean_turn = std::accumulate(turn_deg.begin(), turn_deg.end(), 0.0) / frames;
+  for (int k = 0; k < 5; ++k) {
+    const double mean = std::accumulate(angle[k].begin(), angle[k].end(), 0.0) / frames;
+    double sxy = 0.0, sxx = 0.0;
+    for (int f = 0; f < frames; ++f) {
+      sxy += (turn_deg[f] - mean_turn) * (angle[k][f] - mean);
+      sxx += (turn_deg[f] - mean_turn) * (turn_deg[f] - mean_turn);
+    }
+    slopes.push_back(sxy / sxx);
+  }
+  return slopes;
+}
+
+TEST(WhiskerTracker, AStartClearanceTakesTheBiasOutOfTheFollicleAngle) {
+  const std::vector<double> clear = follicle_angle_slopes(6.0);
+  const std::vector<double> none = follicle_angle_slopes(0.0);
+  double clear_error = 0.0, none_error = 0.0;
+  for (int k = 0; k < 5; ++k) {
+    std::cout << "whisker " << k << ": follicle angle / true turn " << clear[k]
+              << " with 6 px clearance, " << none[k] << " without\n";
+    clear_error += std::abs(clear[k] - 1.0) / 5.0;
+    none_error += std::abs(none[k] - 1.0) / 5.0;
+    EXPECT_NEAR(clear[k], 1.0, 0.05) << "whisker " << k;
+  }
+  // Measured: 0.99-1.04 (mean error 1.7 %) with the clearance, 1.05-1.09 (6.2 %) without; on the
+  // sliding-pole sequence (docs/tracker.md) 1.006 and 0.887: the bias's sign depends on how the
+  // whisker meets the face's edge. The scene shows the bias (the test of the option can fail).
+  EXPECT_LT(clear_error, 0.03);
+  EXPECT_GT(none_error, 0.04);
 }
 
 // A face whose edge is soft (fur, motion blur) and a whisker that enters it obliquely: along the
