@@ -79,11 +79,20 @@ LoadFit::LoadFit(const common::BeamDescription& beam, LoadFitOptions options)
     error_ = "load fit: fit_base_rotation needs node 0's rotation fixed (a clamped first node)";
     return;
   }
+  if (options_.fit_base_translation && !(model_.fixed_mask()[0] && model_.fixed_mask()[1])) {
+    error_ = "load fit: fit_base_translation needs node 0's position fixed (a clamped first node)";
+    return;
+  }
   const common::BeamModel coarse(beam);
   parts_ = options_.subdivisions;
   n_ = coarse.num_nodes();
   per_point_ = options_.fit_moments ? 3 : 2;
-  base_ = options_.fit_base_rotation ? 1 : 0;
+  base_ = 0;
+  if (options_.fit_base_rotation) base_dofs_[base_++] = 2;
+  if (options_.fit_base_translation) {
+    base_dofs_[base_++] = 0;
+    base_dofs_[base_++] = 1;
+  }
   const int max_params = per_point_ * options_.max_load_points + base_;
   const int dofs = model_.num_dofs();
   for (Eigen::VectorXd* v : {&u_, &loads_prev_, &rhs_, &du_, &z_, &u_backup_}) v->setZero(dofs);
@@ -105,7 +114,7 @@ LoadFit::LoadFit(const common::BeamDescription& beam, LoadFitOptions options)
 }
 
 void LoadFit::reset() noexcept {
-  base_offset_ = 0.0;
+  for (double& b : base_offsets_) b = 0.0;
   u_.setZero();
   loads_prev_.setZero();
   q_.setZero();
@@ -146,13 +155,13 @@ void LoadFit::take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked,
       if (fixed[d]) u[d] = tracked[3 * i + c];
     }
   }
-  if (base_) u[2] = tracked[2] + q_[params_];
+  for (int k = 0; k < base_; ++k) u[base_dofs_[k]] = tracked[base_dofs_[k]] + q_[params_ + k];
 }
 
 bool LoadFit::parameter_columns(bool newton_step) {
-  // Node 0's rotation couples to fine node 1 only (the tangent is block-tridiagonal); the support
-  // moved by 1 moves the free dofs by −K_ff⁻¹ K_f,θ0.
-  const Eigen::Vector3d base_coupling = tangent_.lower(0).col(2);
+  // Node 0's dofs couple to fine node 1 only (the tangent is block-tridiagonal); a support dof d
+  // moved by 1 moves the free dofs by −K_ff⁻¹ K_f,d.
+  const Eigen::Matrix3d base_coupling = tangent_.lower(0);
   tangent_.apply_fixed_dofs(model_.fixed_mask());
   if (!factor_.factor(tangent_)) return false;
   // Every right-hand side first, then one solve for all of them (columns side by side: 0.6x the
@@ -164,7 +173,7 @@ bool LoadFit::parameter_columns(bool newton_step) {
       unit_load(j, z);
     } else {
       z.setZero();
-      z.segment<3>(3) = -base_coupling;
+      z.segment<3>(3) = -base_coupling.col(base_dofs_[j - params_]);
     }
   }
   if (newton_step) columns_.col(p) = -rhs_;
@@ -172,13 +181,13 @@ bool LoadFit::parameter_columns(bool newton_step) {
   if (newton_step) du_ = columns_.col(p);
   for (int j = 0; j < p; ++j) {
     auto z = columns_.col(j);
-    if (j >= params_) z[2] = 1.0;
+    if (j >= params_) z[base_dofs_[j - params_]] = 1.0;
     for (int i = 0; i < n_; ++i) {
       jacobian_.block<2, 1>(3 * i, j) = z.segment<2>(3 * parts_ * i);
       jacobian_(3 * i + 2, j) = rotation_scale_ * z[3 * parts_ * i + 2];
     }
-    // The tracked follicle angle is what the fitted one replaces: not a measurement here.
-    if (base_) jacobian_(2, j) = 0.0;
+    // The tracked follicle dofs the fitted ones replace are not measurements here.
+    for (int k = 0; k < base_; ++k) jacobian_(base_dofs_[k], j) = 0.0;
   }
   return true;
 }
@@ -188,7 +197,7 @@ void LoadFit::residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const E
     residual_.segment<2>(3 * i) = u.segment<2>(3 * parts_ * i) - tracked.segment<2>(3 * i);
     residual_[3 * i + 2] = rotation_scale_ * (u[3 * parts_ * i + 2] - tracked[3 * i + 2]);
   }
-  if (base_) residual_[2] = 0.0;
+  for (int k = 0; k < base_; ++k) residual_[base_dofs_[k]] = 0.0;
 }
 
 // The robust Gauss–Newton step on the loads from jacobian_ (tracked nodes per load parameter) and
@@ -346,7 +355,7 @@ LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, co
   if (params_ == 0) return summary;
   // The follicle angle's parameter follows the loads': carry it over from the last call, whose
   // load count may have differed.
-  if (base_) q_[params_] = base_offset_;
+  for (int k = 0; k < base_; ++k) q_[params_ + k] = base_offsets_[base_dofs_[k]];
   u_backup_ = u_;
   q_backup_ = q_;
   int iterations = 0;
@@ -362,7 +371,7 @@ LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, co
     iterations = 0;
     ok = nested(tracked, &iterations, &equilibrium);
   }
-  if (base_) base_offset_ = q_[params_];
+  for (int k = 0; k < base_; ++k) base_offsets_[base_dofs_[k]] = q_[params_ + k];
   summary.converged = ok;
   summary.equilibrium = equilibrium;
   summary.iterations = iterations;

@@ -47,6 +47,11 @@ struct LoadFitOptions {
   /// first element alone (whose angle noise would otherwise read as a load). Needs node 0's
   /// rotation fixed.
   bool fit_base_rotation = false;
+  /// Also fit the position of a clamped first node: its support is the tracked position plus a
+  /// fitted offset, so the whole shape sets it, not the tracked first node alone. Where the image
+  /// beside a follicle is biased (a whisker's first node sits 0.2–0.4 px sideways under a large
+  /// load) the clamp at the tracked node reads the load short. Needs node 0's translation fixed.
+  bool fit_base_translation = false;
 
   std::optional<std::string> validate() const;
 };
@@ -89,7 +94,10 @@ class LoadFit {
   Eigen::Ref<const Eigen::VectorXd> loads() const { return q_.head(params_); }
   /// The fitted offset of node 0's support rotation from the tracked one (radians; 0 unless
   /// options().fit_base_rotation).
-  double base_rotation() const { return base_offset_; }
+  double base_rotation() const { return base_offsets_[2]; }
+  /// The fitted offset of node 0's support position from the tracked one (pixels; zero unless
+  /// options().fit_base_translation).
+  Eigen::Vector2d base_translation() const { return {base_offsets_[0], base_offsets_[1]}; }
   /// The fitted equilibrium state of the subdivided beam.
   const Eigen::VectorXd& state() const { return u_; }
   /// Forgets the last fit: the next starts from the unloaded beam.
@@ -117,12 +125,15 @@ class LoadFit {
   common::BeamModel model_;
   common::StaticBeamSolver solver_;
   int parts_ = 1, n_ = 0, per_point_ = 2, params_ = 0;
-  int base_ = 0;  // 1 when the support rotation of node 0 is a parameter (index params_)
-  double base_offset_ = 0.0;     // the last fit's follicle angle offset (q_[params_] during a fit)
-  const int* points_ = nullptr;  // this call's load points
-  const double* directions_ = nullptr;  // and their force directions (null: free)
-  int pp_ = 2;                          // parameters per load point in this call
-  double rotation_scale_ = 1.0;         // rotations enter the fit as arc lengths over one element
+  // The support dofs of node 0 that are parameters (indices params_ .. params_ + base_ − 1), in
+  // this order: its rotation (fit_base_rotation), then x and y (fit_base_translation).
+  int base_ = 0;
+  int base_dofs_[3] = {2, 0, 1};
+  double base_offsets_[3] = {0.0, 0.0, 0.0};  // the last fit's support offsets, by dof
+  const int* points_ = nullptr;               // this call's load points
+  const double* directions_ = nullptr;        // and their force directions (null: free)
+  int pp_ = 2;                                // parameters per load point in this call
+  double rotation_scale_ = 1.0;  // rotations enter the fit as arc lengths over one element
   Eigen::VectorXd u_, loads_prev_, rhs_, du_, z_, u_backup_;
   Eigen::MatrixXd columns_;  // K_T⁻¹E, one column per load parameter
   Eigen::VectorXd residual_, change_, q_, q_backup_, dq_, g_;

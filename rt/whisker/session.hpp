@@ -27,6 +27,9 @@ const char* to_string(Redetect redetect);
 std::optional<Redetect> redetect_from_string(const std::string& name);
 
 /// LoadFitOptions with the follicle angle fitted (fit_base_rotation): the session's contact fit.
+/// Fitting the follicle's position too (fit_base_translation, `sinew-track
+/// --fit-follicle-position`) helps where the load bends the whisker most at its follicle and
+/// costs where it is small (docs/tracker.md, "The follicle's position in the load fit").
 inline LoadFitOptions default_contact_fit() {
   LoadFitOptions o;
   o.fit_base_rotation = true;

@@ -301,6 +301,7 @@ rt::WhiskerSessionOptions session_options_of(const WhiskerTrackArgs& args) {
   session_options.readout = args.readout;
   session_options.rest_frame = args.rest_frame;
   session_options.rest_frames = args.rest_frames;
+  session_options.contact_fit.fit_base_translation = args.fit_follicle_position;
   if (auto mode = rt::redetect_from_string(args.redetect)) {
     session_options.redetect = *mode;
   } else {

@@ -27,6 +27,7 @@ struct WhiskerTrackArgs {
   /// The frame whose fits are the whiskers at rest (rt::WhiskerSessionOptions::rest_frame).
   int rest_frame = 0;
   int rest_frames = 1;
+  bool fit_follicle_position = false;  ///< rt::LoadFitOptions::fit_base_translation
   /// The read-out: physics (scale, material, taper), head axis, curvature window; and a CSV file
   /// with one row per whisker per frame (empty: none).
   rt::WhiskerReadoutOptions readout;
