@@ -137,6 +137,38 @@ TEST(LoadFit, AForceAlongAKnownDirectionIsOneWellDeterminedParameter) {
   EXPECT_LT(along_error, free_error) << "along " << along_error << ", free " << free_error;
 }
 
+// The follicle tests' scene: the cantilever clamped at a turn of 3° under 0.8 P along its normal
+// at fine node 7, the exact shape of that equilibrium, and one-point fits of either method (the
+// nested one warmed on the exact shape first, as the frames before would: it starts from its last
+// equilibrium).
+struct TurnedClamp {
+  double P = 1000.0 * 18.0 / (200.0 * 200.0);
+  double clamp = 3.0 * M_PI / 180.0;
+  Eigen::Vector2d normal{-std::sin(clamp), std::cos(clamp)};
+  double direction[2] = {normal.x(), normal.y()};
+  int point = 0;
+  Eigen::VectorXd exact;
+};
+
+LoadFitOptions one_point_options(bool coupled) {
+  LoadFitOptions o;
+  o.coupled = coupled;
+  o.max_load_points = 1;
+  o.max_iterations = 20;
+  return o;
+}
+
+TurnedClamp turned_clamp(LoadFit& held, LoadFit& fitted, bool coupled) {
+  TurnedClamp c;
+  c.point = fitted.fine_node(7);
+  c.exact = tracked_shape(fitted, c.point, 0.8 * c.P * c.normal, 11, c.clamp);
+  if (!coupled) {
+    held.fit(c.exact, &c.point, 1, c.direction);
+    fitted.fit(c.exact, &c.point, 1, c.direction);
+  }
+  return c;
+}
+
 // A whisker's follicle angle, as tracked, carries the noise of the first element alone; a force
 // at 70 % of the length reads 1° of it as ~25 % of the load (the rendered whisker pad: the
 // tracked angle's error and the contact moment's went together). With the support rotation a
@@ -144,36 +176,23 @@ TEST(LoadFit, AForceAlongAKnownDirectionIsOneWellDeterminedParameter) {
 // with the follicle angle 1.5° off, gives the force back to the stopping rule and the angle to
 // 1e-5 rad; with the tracked angle held, the force is more than 10 % off. Both methods.
 TEST_P(LoadFitMethods, AFittedFollicleAngleIgnoresTheTrackedOne) {
-  LoadFitOptions o;
-  o.coupled = GetParam();
-  o.max_load_points = 1;
-  o.max_iterations = 20;
+  LoadFitOptions o = one_point_options(GetParam());
   const auto beam = cantilever();
   LoadFit held(beam, o);
   o.fit_base_rotation = true;
   LoadFit fitted(beam, o);
   ASSERT_TRUE(held.valid() && fitted.valid()) << fitted.error();
-  const int point = fitted.fine_node(7);
-  const double P = 1000.0 * 18.0 / (200.0 * 200.0);
-  const double clamp = 3.0 * M_PI / 180.0, off = 1.5 * M_PI / 180.0;
-  const Eigen::Vector2d normal(-std::sin(clamp), std::cos(clamp));
-  const Eigen::VectorXd exact = tracked_shape(fitted, point, 0.8 * P * normal, 11, clamp);
-  Eigen::VectorXd tracked = exact;
-  tracked[2] += off;
-  const double direction[2] = {normal.x(), normal.y()};
-  // The nested method starts from its last equilibrium: warm it on the shape without the angle
-  // error first, as the frames before would.
-  if (!GetParam()) {
-    held.fit(exact, &point, 1, direction);
-    fitted.fit(exact, &point, 1, direction);
-  }
-  const LoadFitSummary s = fitted.fit(tracked, &point, 1, direction);
+  const TurnedClamp c = turned_clamp(held, fitted, GetParam());
+  const double P = c.P, off = 1.5 * M_PI / 180.0;
+  const Eigen::Index n = c.exact.size();
+  const Eigen::VectorXd tracked = c.exact + off * Eigen::VectorXd::Unit(n, 2);
+  const LoadFitSummary s = fitted.fit(tracked, &c.point, 1, c.direction);
   EXPECT_TRUE(s.converged);
   ASSERT_EQ(fitted.loads().size(), 1);
   EXPECT_NEAR(fitted.loads()[0], 0.8 * P, 2e-3 * P);
   EXPECT_NEAR(fitted.base_rotation(), -off, 1e-5);
   EXPECT_LT(s.rms_px, 1e-3);
-  held.fit(tracked, &point, 1, direction);
+  held.fit(tracked, &c.point, 1, c.direction);
   EXPECT_GT(std::abs(held.loads()[0] - 0.8 * P), 0.1 * P) << held.loads()[0] / P;
   EXPECT_EQ(held.base_rotation(), 0.0);
 }
@@ -183,38 +202,27 @@ TEST_P(LoadFitMethods, AFittedFollicleAngleIgnoresTheTrackedOne) {
 // force short; with the support's position a parameter the whole shape sets it, and the force
 // and the offset come back. Both methods.
 TEST_P(LoadFitMethods, AFittedFolliclePositionIgnoresTheTrackedOne) {
-  LoadFitOptions o;
-  o.coupled = GetParam();
-  o.max_load_points = 1;
-  o.max_iterations = 20;
+  LoadFitOptions o = one_point_options(GetParam());
   o.fit_base_rotation = true;
   const auto beam = cantilever();
   LoadFit held(beam, o);
   o.fit_base_translation = true;
   LoadFit fitted(beam, o);
   ASSERT_TRUE(held.valid() && fitted.valid()) << fitted.error();
-  const int point = fitted.fine_node(7);
-  const double P = 1000.0 * 18.0 / (200.0 * 200.0);
-  const double clamp = 3.0 * M_PI / 180.0;
-  const Eigen::Vector2d normal(-std::sin(clamp), std::cos(clamp));
-  const Eigen::VectorXd exact = tracked_shape(fitted, point, 0.8 * P * normal, 11, clamp);
-  Eigen::VectorXd tracked = exact;
-  const Eigen::Vector2d off = 0.3 * normal;
-  tracked[0] += off.x();
-  tracked[1] += off.y();
-  const double direction[2] = {normal.x(), normal.y()};
-  if (!GetParam()) {  // the nested method starts from its last equilibrium (see above)
-    held.fit(exact, &point, 1, direction);
-    fitted.fit(exact, &point, 1, direction);
-  }
-  const LoadFitSummary s = fitted.fit(tracked, &point, 1, direction);
+  const TurnedClamp c = turned_clamp(held, fitted, GetParam());
+  const double P = c.P;
+  const Eigen::Vector2d off = 0.3 * c.normal;
+  const Eigen::Index n = c.exact.size();
+  const Eigen::VectorXd tracked =
+      c.exact + off.x() * Eigen::VectorXd::Unit(n, 0) + off.y() * Eigen::VectorXd::Unit(n, 1);
+  const LoadFitSummary s = fitted.fit(tracked, &c.point, 1, c.direction);
   EXPECT_TRUE(s.converged);
   ASSERT_EQ(fitted.loads().size(), 1);
   EXPECT_NEAR(fitted.loads()[0], 0.8 * P, 2e-3 * P);
   EXPECT_NEAR((fitted.base_translation() + off).norm(), 0.0, 1e-3);
   EXPECT_LT(s.rms_px, 1e-3);
   // Measured: held, 3.2 % of P off (the fitted one to 2e-3 P).
-  held.fit(tracked, &point, 1, direction);
+  held.fit(tracked, &c.point, 1, c.direction);
   EXPECT_GT(std::abs(held.loads()[0] - 0.8 * P), 0.02 * P) << held.loads()[0] / P;
   EXPECT_EQ(held.base_translation().norm(), 0.0);
 }
