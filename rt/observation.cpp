@@ -112,6 +112,16 @@ int find_candidates(const float* profile, int origin, float shift, const Profile
     // whisker answers the same under a bright or a dim part of the backlight.
     const float min_background = search.min_background;
     int k = begin;
+    if (search.ridge_mean_surround) {
+      for (; k <= end; ++k) {
+        const float left = in[k - s], right = in[k + s];
+        const float centre_value = 0.25f * (in[k - 1] + 2.0f * in[k] + in[k + 1]);
+        const float lo = left < right ? left : right, hi = left < right ? right : left;
+        const float mean_depth = 0.5f * (left + right) - centre_value;
+        const float bounded = std::min(mean_depth, 4.0f * (lo - centre_value));
+        out_response[k] = hi >= min_background ? 100.0f * bounded / (hi > 1.0f ? hi : 1.0f) : 0.0f;
+      }
+    }
 #ifdef __SSE2__
     // Four offsets at a time: SSE2 is part of x86-64, and min/max/compare/and give the same
     // floats as the scalar loop's comparisons (NaN included), so the two agree bit for bit.

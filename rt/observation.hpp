@@ -44,6 +44,10 @@ struct ProfileSearch {
   /// kDarkRidge: no response where the brighter side is darker than this (grey levels): inside
   /// the face or another dark object, texture would otherwise read as large relative contrast.
   float min_background = 0.0f;
+  /// kDarkRidge: the depth below the mean of both sides, bounded by 4× the depth below the darker
+  /// side, instead of the latter (for lines where the background is curved, see
+  /// TrackerOptions::start_mean_surround_px).
+  bool ridge_mean_surround = false;
 
   /// Profile samples needed beyond ±range_px: the central difference reads ±1 more around each
   /// response and the local-maximum test one response more (edges); lines read ±(surround + 1).

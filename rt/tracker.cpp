@@ -78,6 +78,9 @@ std::optional<std::string> TrackerOptions::validate() const {
   }
   if (!(convergence_px > 0.0)) return field_error("convergence_px", convergence_px, "must be > 0");
   if (!(research_px >= 0.0)) return field_error("research_px", research_px, "must be >= 0");
+  if (!(start_mean_surround_px >= 0.0)) {
+    return field_error("start_mean_surround_px", start_mean_surround_px, "must be >= 0");
+  }
   if (!(start_clearance_px >= 0.0)) {
     return field_error("start_clearance_px", start_clearance_px, "must be >= 0");
   }
@@ -217,6 +220,9 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
         line.xi = xi;
         line.side = sides_ == 1 ? 0.0f : (side == 0 ? -1.0f : 1.0f);
         line.point = static_cast<int>(sample_points_.size()) - 1;
+        line.mean_surround = options_.observation == ObservationMode::kDarkRidge &&
+                             options_.start_end == StartEnd::kDarkRegion &&
+                             s0 + xi * model_.element(e).length < options_.start_mean_surround_px;
       }
     }
     const double L0 = model_.element(e).length;

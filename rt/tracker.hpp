@@ -130,6 +130,13 @@ struct TrackerOptions {
   /// 1.006 and 0.99–1.04). The first node is still held along the object by its end search and
   /// sideways by the lines beyond.
   double start_clearance_px = 0.0;
+  /// kDarkRegion with kDarkRidge: within this arc length of the first node, pixels, ≥ 0, a ridge's
+  /// depth is measured below the mean of its two sides (bounded by 4× the depth below the darker
+  /// side, so that an edge still answers little) instead of below the darker side. Next to the
+  /// dark region the background along a line is curved (the region's soft edge), which moves the
+  /// peak of the darker side's depth sideways; the mean of both sides leaves a linear or
+  /// quadratic background's peak in place.
+  double start_mean_surround_px = 0.0;
   /// Weight of an end search line relative to a search line along a normal, > 0. A free beam is
   /// held along itself by its end observations alone, against the whole length's normal lines.
   double end_weight = 1.0;
@@ -247,6 +254,7 @@ class Tracker {
     float side = 0.0f;  // −1, +1 (edge boundaries) or 0 (line centre)
     int end = 0;        // ±1: searches along the outward tangent for the object's end (free ends)
     int point = 0;      // index into sample_points_ (both boundaries of a sample share a point)
+    bool mean_surround = false;  // kDarkRidge depth from both sides' mean (start_mean_surround_px)
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();
     Eigen::Vector2d normal = Eigen::Vector2d::Zero();
     int num_candidates = 0;

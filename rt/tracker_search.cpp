@@ -147,6 +147,7 @@ void Tracker::search(const ImageView& frame, int range_px) {
       const int ci = side_offset_px(lines_[j]);
       ProfileSearch search = base;
       search.expected_sign = edge_sign(lines_[j]);
+      search.ridge_mean_surround = lines_[j].mean_surround;
       lines_[j].num_candidates = find_candidates(profile, ci - lo, static_cast<float>(c - ci),
                                                  search, response, &candidates_[j * K]);
     }

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -120,6 +121,44 @@ TEST(FindCandidates, RidgeResponseIsTheScalarFormulaAtEveryOffset) {
       }
     }
   }
+}
+
+TEST(FindCandidates, MeanSurroundLeavesARidgeOnACurvedBackgroundInPlace) {
+  // A whisker next to the face: a dark ridge (Gaussian, σ 1 px, 10 grey levels deep, centred at
+  // 0) on a background that falls and curves towards one side, as the face's soft
+  // edge does along a line beside a follicle. The darker side's depth moves its peak sideways;
+  // the mean of both sides (bounded by 4x the darker side's depth) leaves it in place, and an edge
+  // still answers little.
+  ProfileSearch search;
+  search.mode = ObservationMode::kDarkRidge;
+  search.range_px = 6;
+  search.line_surround_px = 3;
+  search.min_strength = 0.5f;
+  const int half = search.range_px + search.margin();
+  std::vector<float> profile(2 * half + 1), response(profile.size());
+  auto peak = [&](bool mean_surround) {
+    search.ridge_mean_surround = mean_surround;
+    Candidate out[3];
+    const int found = find_candidates(profile.data(), half, 0.0f, search, response.data(), out);
+    return found > 0 ? out[0].offset : std::nanf("");
+  };
+  for (int k = -half; k <= half; ++k) {
+    const double x = k, background = 140.0 + 0.5 * x - 0.2 * x * x;
+    profile[k + half] = static_cast<float>(background - 10.0 * std::exp(-0.5 * x * x));
+  }
+  const float darker = peak(false), mean = peak(true);
+  EXPECT_GT(std::abs(darker), 0.05f) << "the darker side's peak is not biased here";  // 0.097
+  EXPECT_NEAR(mean, 0.0f, 0.02f);
+  // An edge (a step of 60 grey levels, smoothed over 2 px) without a ridge.
+  for (int k = -half; k <= half; ++k) {
+    profile[k + half] = static_cast<float>(110.0 + 30.0 * std::tanh(0.5 * k));
+  }
+  peak(true);
+  float strongest = 0.0f;
+  for (int k = -search.range_px; k <= search.range_px; ++k) {
+    strongest = std::max(strongest, response[k + half]);
+  }
+  EXPECT_LT(strongest, 1.0f) << "per cent of the backlight";
 }
 
 }  // namespace

@@ -433,6 +433,7 @@ int main(int argc, char** argv) {
   bool repair_traces = false;
   double associate_home_px = 0.0;
   double start_clearance_px = 0.0;
+  double start_mean_surround_px = 0.0;
   bool fit_follicle_position = false;
   std::string redetect = "every";
   sinew::rt::WhiskerReadoutOptions readout;
@@ -459,6 +460,13 @@ int main(int argc, char** argv) {
                  "follicle; 6 removes the follicle angle's lag on rendered whisking (0.89 -> 1.006 "
                  "of the true angle) but holds the shared video's follicles worse "
                  "(docs/tracker.md); 0 (default) off")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--start-mean-surround-px", start_mean_surround_px,
+                 "--whiskers: within this distance of its follicle a whisker's ridge depth is "
+                 "taken below both sides' mean, not the darker side (the face's curved edge moves "
+                 "the latter sideways); 6 takes the rendered contact moment's error from 17-25 to "
+                 "10-14 %, but three whisker safety tests fail with it (docs/tracker.md); "
+                 "0 (default) off")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--fit-follicle-position", fit_follicle_position,
                "--whiskers: the contact load fit also fits the follicle's position (the tracked "
@@ -550,6 +558,7 @@ int main(int argc, char** argv) {
       w.repair_traces = repair_traces;
       w.associate_home_px = associate_home_px;
       w.start_clearance_px = start_clearance_px;
+      w.start_mean_surround_px = start_mean_surround_px;
       w.fit_follicle_position = fit_follicle_position;
       w.redetect = redetect;
       w.rest_frame = rest_frame;

@@ -61,6 +61,7 @@ TrackInit parse_track_init(const nlohmann::json& doc, const std::string& path) {
         {"min_sigma_px", &t.min_sigma_px},
         {"min_inlier_fraction", &t.min_inlier_fraction},
         {"start_clearance_px", &t.start_clearance_px},
+        {"start_mean_surround_px", &t.start_mean_surround_px},
         {"snake_stretch_weight", &t.snake_stretch_weight},
         {"snake_bend_weight", &t.snake_bend_weight}};
     const std::map<std::string, int*> integers = {

@@ -20,6 +20,8 @@ struct WhiskerTrackArgs {
   double associate_home_px = 0.0;  ///< rt::WhiskerTrackerOptions::associate_home_px
   /// rt::TrackerOptions::start_clearance_px of every whisker (the follicle angle's bias)
   double start_clearance_px = 0.0;
+  /// rt::TrackerOptions::start_mean_surround_px of every whisker (the follicle's sideways bias)
+  double start_mean_surround_px = 0.0;
   /// Detection after tracking, for rt::WhiskerTracker::associate: "every" frame (a 25–100 fps
   /// camera, whose whiskers move further between frames than the search reaches), only on frames
   /// with a "lost" whisker (a high-speed camera), or "never".
