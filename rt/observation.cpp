@@ -121,31 +121,32 @@ int find_candidates(const float* profile, int origin, float shift, const Profile
         const float bounded = std::min(mean_depth, 4.0f * (lo - centre_value));
         out_response[k] = hi >= min_background ? 100.0f * bounded / (hi > 1.0f ? hi : 1.0f) : 0.0f;
       }
-    }
+    } else {
 #ifdef __SSE2__
-    // Four offsets at a time: SSE2 is part of x86-64, and min/max/compare/and give the same
-    // floats as the scalar loop's comparisons (NaN included), so the two agree bit for bit.
-    const __m128 quarter = _mm_set1_ps(0.25f), two = _mm_set1_ps(2.0f),
-                 hundred = _mm_set1_ps(100.0f);
-    const __m128 one = _mm_set1_ps(1.0f), background = _mm_set1_ps(min_background);
-    for (; k + 3 <= end; k += 4) {
-      const __m128 left = _mm_loadu_ps(in + k - s), right = _mm_loadu_ps(in + k + s);
-      const __m128 centre_value = _mm_mul_ps(
-          quarter,
-          _mm_add_ps(_mm_add_ps(_mm_loadu_ps(in + k - 1), _mm_mul_ps(two, _mm_loadu_ps(in + k))),
-                     _mm_loadu_ps(in + k + 1)));
-      const __m128 lo = _mm_min_ps(left, right), hi = _mm_max_ps(right, left);
-      const __m128 depth =
-          _mm_div_ps(_mm_mul_ps(hundred, _mm_sub_ps(lo, centre_value)), _mm_max_ps(hi, one));
-      _mm_storeu_ps(out_response + k, _mm_and_ps(_mm_cmpge_ps(hi, background), depth));
-    }
+      // Four offsets at a time: SSE2 is part of x86-64, and min/max/compare/and give the same
+      // floats as the scalar loop's comparisons (NaN included), so the two agree bit for bit.
+      const __m128 quarter = _mm_set1_ps(0.25f), two = _mm_set1_ps(2.0f),
+                   hundred = _mm_set1_ps(100.0f);
+      const __m128 one = _mm_set1_ps(1.0f), background = _mm_set1_ps(min_background);
+      for (; k + 3 <= end; k += 4) {
+        const __m128 left = _mm_loadu_ps(in + k - s), right = _mm_loadu_ps(in + k + s);
+        const __m128 centre_value = _mm_mul_ps(
+            quarter,
+            _mm_add_ps(_mm_add_ps(_mm_loadu_ps(in + k - 1), _mm_mul_ps(two, _mm_loadu_ps(in + k))),
+                       _mm_loadu_ps(in + k + 1)));
+        const __m128 lo = _mm_min_ps(left, right), hi = _mm_max_ps(right, left);
+        const __m128 depth =
+            _mm_div_ps(_mm_mul_ps(hundred, _mm_sub_ps(lo, centre_value)), _mm_max_ps(hi, one));
+        _mm_storeu_ps(out_response + k, _mm_and_ps(_mm_cmpge_ps(hi, background), depth));
+      }
 #endif
-    for (; k <= end; ++k) {
-      const float left = in[k - s], right = in[k + s];
-      const float centre_value = 0.25f * (in[k - 1] + 2.0f * in[k] + in[k + 1]);
-      const float lo = left < right ? left : right, hi = left < right ? right : left;
-      out_response[k] =
-          hi >= min_background ? 100.0f * (lo - centre_value) / (hi > 1.0f ? hi : 1.0f) : 0.0f;
+      for (; k <= end; ++k) {
+        const float left = in[k - s], right = in[k + s];
+        const float centre_value = 0.25f * (in[k - 1] + 2.0f * in[k] + in[k + 1]);
+        const float lo = left < right ? left : right, hi = left < right ? right : left;
+        out_response[k] =
+            hi >= min_background ? 100.0f * (lo - centre_value) / (hi > 1.0f ? hi : 1.0f) : 0.0f;
+      }
     }
   } else {
     // > 0 at a dark line.

@@ -172,7 +172,7 @@ Scene build_scene(const WhiskerPadOptions& o) {
 // The pole at a frame: slid from its rest position (60 % of the pressed whisker's length) towards
 // the follicle by up to pole_travel of the length and back, one cosine period over the sequence,
 // along the line from the follicle. Towards the tip the contact's simple rule (the node nearest the
-// pole, pushed along the line from the pole's centre) breaks down as the tip passes the pole.
+// pole, pushed along the whisker's normal there) breaks down as the tip passes the pole.
 Eigen::Vector2d pole_at(const WhiskerPadOptions& o, const Scene& sc, int frame) {
   if (o.pole_travel == 0.0 || o.whiskers < 1) return sc.pole;
   const double length = sc.whiskers[o.whiskers - 1].length;
