@@ -368,8 +368,8 @@ double polyline_length(const std::vector<Eigen::Vector2d>& pts) {
 // within max_extension_px and the extension stays on a ridge (the neighbour's: they share it
 // there): it is reported from where it meets the face. Gives nothing when no such stretch is left.
 std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen::Vector2d>& points,
-                                          bool reaches_face, const WhiskerDetectionOptions& o,
-                                          bool* extended_out) {
+                                          bool reaches_face, bool may_extend,
+                                          const WhiskerDetectionOptions& o, bool* extended_out) {
   *extended_out = false;
   const double clear_px = o.surround_px + o.smoothing_clear_px;
   std::vector<double> s(points.size(), 0.0);
@@ -437,7 +437,7 @@ std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen
   // Back to the face along the tangent: into the dark mask (which lies ~2 px inside the edge),
   // at most as far as the raw trace went, or, for a trace that did not reach the face,
   // max_extension_px.
-  const bool extended = o.repair_traces && (cut_at_face || !reaches_face);
+  const bool extended = may_extend && (cut_at_face || !reaches_face);
   *extended_out = extended;
   std::vector<Eigen::Vector2d> out;
   const double reach = extended ? s0 + o.max_extension_px : s0 + 4.0;
@@ -599,69 +599,57 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
       cv::circle(claimed, cv::Point(int(std::lround(p.x())), int(std::lround(p.y()))), 1, 255, -1);
     }
   };
+  auto reject = [&](const std::vector<Eigen::Vector2d>& points, const char* reason) {
+    if (o.keep_rejected) result.rejected.push_back({points, reason});
+  };
   std::vector<Candidate> found;
-  for (const Seed& seed : seeds) {
-    const int sx = static_cast<int>(seed.p.x()), sy = static_cast<int>(seed.p.y());
-    if (claimed.at<std::uint8_t>(sy, sx)) continue;
-    const Eigen::Vector2d n = normal_at(m, seed.p.x(), seed.p.y());
-    const Eigen::Vector2d t(-n.y(), n.x());
-    Trace a = follow(m, o, seed.p, t);
-    Trace b = follow(m, o, seed.p, -t);
-    // The follicle is the end at the face; when both ends reach a dark region (a tip over the
-    // cheek's shadow), the darker one: a whisker tapers, its contrast falls towards the tip.
-    const float da = face_distance(m, a.points.back()), db = face_distance(m, b.points.back());
-    if (da <= 2.0f && db <= 2.0f) {
-      if (end_contrast(m, a.points) > end_contrast(m, b.points)) std::swap(a, b);
-    } else if (da < db) {
-      std::swap(a, b);
+  // A whisker starts at the face and leaves it; a thin structure of the apparatus, far darker
+  // than a backlit hair, is not one.
+  auto consider = [&](std::vector<Eigen::Vector2d> points, bool extended) {
+    DetectedWhisker c;
+    c.points = std::move(points);
+    c.follicle = c.points.front();
+    c.length_px = polyline_length(c.points);
+    c.contrast_percent = median_contrast(m, c.points);
+    float farthest = 0.0f;
+    for (const auto& p : c.points) farthest = std::max(farthest, face_distance(m, p));
+    // The mask lies ~2 px inside the edge the follicle was refined to.
+    if (face_distance(m, c.follicle) > 4.0) {
+      reject(c.points, "not at the face");
+    } else if (farthest < o.pad_band_px) {
+      reject(c.points, "does not leave the face");
+    } else if (c.contrast_percent > o.max_contrast) {
+      reject(c.points, "too dark");
+    } else if (c.length_px < o.min_length_px) {
+      reject(c.points, "too short");
+    } else {
+      found.push_back({std::move(c), extended});
     }
-    // b ends at the face, a at the tip. The trace stopped at the first point of the dark mask,
-    // which its heavy smoothing puts ~2 px inside the face: the follicle is where the intensity
-    // falls fastest along the whisker there (the face's edge).
+  };
+  // b ends at the face, a at the tip.
+  auto take = [&](Trace& a, Trace& b, bool may_extend) {
+    // The trace stopped at the first point of the dark mask, which its heavy smoothing puts ~2 px
+    // inside the face: the follicle is where the intensity falls fastest along the whisker there
+    // (the face's edge).
     if (b.ended_dark && b.points.size() >= 2) refine_follicle(m, &b.points);
     DetectedWhisker w;
     for (std::size_t i = b.points.size(); i-- > 1;) w.points.push_back(b.points[i]);
     w.points.insert(w.points.end(), a.points.begin(), a.points.end());
-    auto reject = [&](const std::vector<Eigen::Vector2d>& points, const char* reason) {
-      if (o.keep_rejected) result.rejected.push_back({points, reason});
-    };
-    // A whisker starts at the face and leaves it; a thin structure of the apparatus, far darker
-    // than a backlit hair, is not one.
-    auto consider = [&](std::vector<Eigen::Vector2d> points, bool extended) {
-      DetectedWhisker c;
-      c.points = std::move(points);
-      c.follicle = c.points.front();
-      c.length_px = polyline_length(c.points);
-      c.contrast_percent = median_contrast(m, c.points);
-      float farthest = 0.0f;
-      for (const auto& p : c.points) farthest = std::max(farthest, face_distance(m, p));
-      // The mask lies ~2 px inside the edge the follicle was refined to.
-      if (face_distance(m, c.follicle) > 4.0) {
-        reject(c.points, "not at the face");
-      } else if (farthest < o.pad_band_px) {
-        reject(c.points, "does not leave the face");
-      } else if (c.contrast_percent > o.max_contrast) {
-        reject(c.points, "too dark");
-      } else if (c.length_px < o.min_length_px) {
-        reject(c.points, "too short");
-      } else {
-        found.push_back({std::move(c), extended});
-      }
-    };
     if (o.smoothing_degree == 0) {
       claim(w.points);
       consider(w.points, false);
-      continue;
+      return;
     }
     bool extended = false;
-    std::vector<Eigen::Vector2d> smooth = smooth_trace(m, w.points, b.ended_dark, o, &extended);
+    std::vector<Eigen::Vector2d> smooth =
+        smooth_trace(m, w.points, b.ended_dark, may_extend, o, &extended);
     if (o.repair_traces && !a.ended_dark && !b.ended_dark) {
       // Neither end reached the face, and the nearer one need not be the follicle (a tip that
       // ends beside the cheek): both are candidates, the pad decides (below).
       bool reversed_extended = false;
       std::vector<Eigen::Vector2d> reversed =
           smooth_trace(m, std::vector<Eigen::Vector2d>(w.points.rbegin(), w.points.rend()), false,
-                       o, &reversed_extended);
+                       may_extend, o, &reversed_extended);
       if (reversed.size() >= 2) {
         if (smooth.size() >= 2)
           consider(reversed, reversed_extended);
@@ -677,10 +665,61 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
       claim({w.points.begin() + static_cast<std::ptrdiff_t>(at - std::min<std::size_t>(at, 10)),
              w.points.begin() + static_cast<std::ptrdiff_t>(std::min(w.points.size(), at + 11))});
       reject(w.points, "not smooth");
-      continue;
+      return;
     }
     claim(w.points);
     consider(std::move(smooth), extended);
+  };
+
+  std::vector<std::pair<Trace, Trace>> deferred;
+  for (const Seed& seed : seeds) {
+    const int sx = static_cast<int>(seed.p.x()), sy = static_cast<int>(seed.p.y());
+    if (claimed.at<std::uint8_t>(sy, sx)) continue;
+    const Eigen::Vector2d n = normal_at(m, seed.p.x(), seed.p.y());
+    const Eigen::Vector2d t(-n.y(), n.x());
+    Trace a = follow(m, o, seed.p, t);
+    Trace b = follow(m, o, seed.p, -t);
+    // The follicle is the end at the face; when both ends reach a dark region (a tip over the
+    // cheek's shadow), the darker one: a whisker tapers, its contrast falls towards the tip.
+    const float da = face_distance(m, a.points.back()), db = face_distance(m, b.points.back());
+    if (da <= 2.0f && db <= 2.0f) {
+      if (end_contrast(m, a.points) > end_contrast(m, b.points)) std::swap(a, b);
+    } else if (da < db) {
+      std::swap(a, b);
+    }
+    // Both ends near the face: a whisker whose tip lies over a dark part of the face (the cheek)
+    // while its follicle end stops short of the pad, where it runs among its neighbours. Which end
+    // is the follicle is decided once the pad is known.
+    if (o.orient_by_pad && std::max(da, db) <= 2.0 * o.pad_band_px) {
+      claim(a.points);
+      claim(b.points);
+      deferred.emplace_back(std::move(a), std::move(b));
+      continue;
+    }
+    take(a, b, o.repair_traces);
+  }
+  // The pad: the middle (coordinate-wise median) of the follicles the other traces reached by
+  // themselves. A deferred trace's follicle is its end nearer to it; when that end is not at the
+  // face it is extended along its tangent to the face (on a ridge or a dark band; drop_off_pad
+  // keeps it only on the pad).
+  std::vector<double> xs, ys;
+  for (const Candidate& c : found) {
+    if (c.extended) continue;
+    xs.push_back(c.whisker.follicle.x());
+    ys.push_back(c.whisker.follicle.y());
+  }
+  Eigen::Vector2d pad_centre = Eigen::Vector2d::Zero();
+  if (!xs.empty()) {
+    std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
+    std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
+    pad_centre = Eigen::Vector2d(xs[xs.size() / 2], ys[ys.size() / 2]);
+  }
+  for (auto& [a, b] : deferred) {
+    if (!xs.empty() &&
+        (a.points.back() - pad_centre).norm() < (b.points.back() - pad_centre).norm()) {
+      std::swap(a, b);
+    }
+    take(a, b, true);
   }
   return found;
 }

@@ -178,6 +178,68 @@ TEST(WhiskerDetection, RepairedTracesFindAWhiskerThatConvergesOnItsNeighbour) {
   }
 }
 
+// A whisker whose tip lies over the cheek (a dark part of the face below the pad) and whose trace
+// stops 14 px short of the pad (on the shared video: where it runs among its neighbours): its end
+// at the face is its tip. Nearer the pad is the follicle (orient_by_pad, the default); the
+// nearer-to-the-face rule named the tip on the cheek a follicle.
+TEST(WhiskerDetection, ATipOverTheCheekIsNotAFollicle) {
+  const Eigen::Vector2d centre(-60.0, 150.0);
+  const double radius = 150.0;
+  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
+  for (int y = 262; y < image.height; ++y) {
+    for (int x = 0; x < 130; ++x) image.pixels[std::size_t(y) * image.width + x] = 25;
+  }
+  std::vector<SceneWhisker> pad;
+  for (int k = 0; k < 3; ++k) {
+    SceneWhisker w;
+    const double phi = -0.45 + 0.225 * k;
+    w.follicle = centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi));
+    w.angle = phi + 0.25;
+    w.kappa = (k % 2 ? 1.0 : -1.0) / 400.0;
+    w.length = 110.0 + 15.0 * k;
+    w.contrast = 10.0 + 3.0 * k;
+    pad.push_back(w);
+    testing::draw_whisker(image, w);
+  }
+  // Its first 14 px are not drawn; it runs 51 px over the backlight into the cheek.
+  SceneWhisker towards_cheek;
+  const double phi = 0.35, angle = 1.2;
+  const Eigen::Vector2d dir(std::cos(angle), std::sin(angle));
+  towards_cheek.follicle =
+      centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi)) + 14.0 * dir;
+  towards_cheek.angle = angle;
+  towards_cheek.length = 76.0;
+  towards_cheek.contrast = 14.0;
+  testing::draw_whisker(image, towards_cheek);
+  std::mt19937 gen(7);
+  testing::add_noise(image, 4.0, gen);
+
+  auto on_cheek = [](const WhiskerDetection& d) {
+    return std::count_if(d.whiskers.begin(), d.whiskers.end(),
+                         [](const DetectedWhisker& w) { return w.follicle.y() > 255.0; });
+  };
+  WhiskerDetectionOptions o;
+  o.face = FaceSide::kLeft;
+  o.orient_by_pad = false;
+  const WhiskerDetection nearer = detect_whiskers(image.view(), o);
+  ASSERT_TRUE(nearer.error.empty()) << nearer.error;
+  EXPECT_EQ(on_cheek(nearer), 1) << "the nearer-to-the-face rule is what this test guards against";
+  o = WhiskerDetectionOptions{};
+  o.face = FaceSide::kLeft;
+  const WhiskerDetection d = detect_whiskers(image.view(), o);
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  EXPECT_EQ(on_cheek(d), 0);
+  // The pad's whiskers, and the one towards the cheek named from the pad: its follicle extended
+  // along its tangent over the 14 px not drawn (measured 6.7 px from the true one).
+  ASSERT_EQ(d.whiskers.size(), pad.size() + 1);
+  for (std::size_t k = 0; k < pad.size(); ++k) {
+    EXPECT_LT((d.whiskers[k].follicle - pad[k].follicle).norm(), 1.0) << "whisker " << k;
+  }
+  const Eigen::Vector2d true_follicle =
+      centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi));
+  EXPECT_LT((d.whiskers.back().follicle - true_follicle).norm(), 8.0);
+}
+
 TEST(WhiskerDetection, BadOptionsAndNoFaceAreErrors) {
   const Scene s = scene(0.0, 11);
   WhiskerDetectionOptions o;
