@@ -3,6 +3,8 @@
 // outside the first frame give one line naming the problem, exit status 2 and no results file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -153,6 +155,40 @@ TEST(SinewTrack, BadInputGivesOneLineAndNoResults) {
     EXPECT_FALSE(t.wrote);
     EXPECT_NE(t.result.err.find(c.expected), std::string::npos) << t.result.err;
     EXPECT_EQ(std::count(t.result.err.begin(), t.result.err.end(), '\n'), 1) << t.result.err;
+  }
+}
+
+// --whiskers --detection-picture: the first frame magnified 3x with every whisker found drawn in
+// its colour, its follicle a dot. Rendered pad (8 whiskers, a pole, a lick port): the picture has
+// the frame's size times 3, and at 3x each follicle the detection record names there is a coloured
+// (not grey) pixel.
+TEST(SinewTrack, WhiskerDetectionPictureMarksEveryFollicleFound) {
+  const fs::path dir = sinew::testing::scratch_dir("sinew_track_detection_picture");
+  auto r = run_tool(
+      kBin + "sinew-synth --scenario whisker-pad --frames 2 --out " + (dir / "pad").string(), dir);
+  ASSERT_EQ(r.exit_status, 0) << r.err;
+  const fs::path picture = dir / "detection.png", out = dir / "results.jsonl";
+  r = run_tool(kBin + "sinew-track --quiet --whiskers --face left --count 1 --input " +
+                   (dir / "pad" / "frames" / "f_%04d.png").string() + " --out " + out.string() +
+                   " --detection-picture " + picture.string(),
+               dir);
+  ASSERT_EQ(r.exit_status, 0) << r.err;
+  std::istringstream in(read_text(out));
+  std::string first;
+  std::getline(in, first);
+  const auto detection = nlohmann::json::parse(first)["detection"];
+  const cv::Mat frame = cv::imread((dir / "pad" / "frames" / "f_0000.png").string());
+  const cv::Mat img = cv::imread(picture.string());
+  ASSERT_FALSE(img.empty());
+  EXPECT_EQ(img.cols, 3 * frame.cols);
+  EXPECT_EQ(img.rows, 3 * frame.rows);
+  ASSERT_GE(detection["whiskers"].size(), 8u);
+  for (const auto& w : detection["whiskers"]) {
+    const int x = static_cast<int>(std::lround(3.0 * w["follicle"][0].get<double>()));
+    const int y = static_cast<int>(std::lround(3.0 * w["follicle"][1].get<double>()));
+    const cv::Vec3b c = img.at<cv::Vec3b>(y, x);
+    const int spread = std::max({c[0], c[1], c[2]}) - std::min({c[0], c[1], c[2]});
+    EXPECT_GT(spread, 100) << "whisker " << w["id"] << " at " << x << ", " << y;
   }
 }
 

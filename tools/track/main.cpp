@@ -518,6 +518,10 @@ int main(int argc, char** argv) {
   app.add_option("--plots", plots,
                  "--whiskers: folder for per-whisker time series (base angle, curvature change, "
                  "moment at the follicle; PNG)");
+  std::string detection_picture;
+  app.add_option("--detection-picture", detection_picture,
+                 "--whiskers: PNG of the first frame's detection, magnified 3x: the whiskers found "
+                 "and every trace that was not, coloured by the reason (why a whisker was missed)");
   app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)")->required();
   app.add_option("--overlay", args.overlay, "folder for overlay PNGs, or a .mp4/.avi file");
   app.add_option("--stride", args.stride, "process every K-th frame")->check(CLI::PositiveNumber);
@@ -571,6 +575,7 @@ int main(int argc, char** argv) {
       w.csv = csv;
       w.plots = plots;
       w.hdf5 = hdf5;
+      w.detection_picture = detection_picture;
       return tools::run_whiskers(w);
     }
     if (args.init.empty()) throw tools::InputError("--init is required (or --whiskers)");

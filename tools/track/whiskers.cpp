@@ -94,6 +94,67 @@ void draw_whiskers(cv::Mat& img, const rt::WhiskerTracker& tracker,
               cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 0), 1, cv::LINE_AA);
 }
 
+// The first frame's detection for a person asking why a whisker was not found: the frame
+// magnified (faint whiskers are 1-2 px wide), the whiskers found in their id colours with their
+// follicles and ids, the traces that were not in one colour per reason, and a legend with counts.
+void write_detection_picture(const cv::Mat& grey, const rt::WhiskerDetection& d,
+                             const std::string& path) {
+  constexpr int kScale = 3;
+  cv::Mat img;
+  cv::resize(grey, img, cv::Size(), kScale, kScale, cv::INTER_CUBIC);
+  cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
+  const std::vector<std::pair<std::string, cv::Scalar>> reasons = {
+      {"not smooth", cv::Scalar(0, 165, 255)},
+      {"not at the face", cv::Scalar(255, 0, 255)},
+      {"does not leave the face", cv::Scalar(0, 255, 255)},
+      {"too dark", cv::Scalar(255, 128, 64)},
+      {"too short", cv::Scalar(255, 255, 0)},
+      {"runs along a longer whisker", cv::Scalar(160, 160, 160)},
+      {"off the pad", cv::Scalar(0, 0, 255)}};
+  auto polyline = [&](const std::vector<Eigen::Vector2d>& pts, const cv::Scalar& colour,
+                      int width) {
+    std::vector<cv::Point> q;
+    for (const auto& p : pts) {
+      q.emplace_back(static_cast<int>(std::lround(kScale * p.x())),
+                     static_cast<int>(std::lround(kScale * p.y())));
+    }
+    cv::polylines(img, q, false, colour, width, cv::LINE_AA);
+  };
+  std::map<std::string, int> counts;
+  for (const auto& r : d.rejected) {
+    ++counts[r.reason];
+    cv::Scalar colour(255, 255, 255);
+    for (const auto& [reason, c] : reasons) {
+      if (reason == r.reason) colour = c;
+    }
+    polyline(r.points, colour, 1);
+  }
+  for (std::size_t w = 0; w < d.whiskers.size(); ++w) {
+    const rt::DetectedWhisker& found = d.whiskers[w];
+    const cv::Scalar colour = id_colour(static_cast<int>(w));
+    polyline(found.points, colour, 2);
+    const cv::Point follicle(static_cast<int>(std::lround(kScale * found.follicle.x())),
+                             static_cast<int>(std::lround(kScale * found.follicle.y())));
+    cv::circle(img, follicle, 2 * kScale, colour, -1, cv::LINE_AA);
+    const Eigen::Vector2d tip = kScale * found.points.back();
+    cv::putText(img, std::to_string(w), cv::Point2d(tip.x() + 4, tip.y() + 4),
+                cv::FONT_HERSHEY_SIMPLEX, 0.8, colour, 2, cv::LINE_AA);
+  }
+  int y = 24;
+  auto legend = [&](const std::string& text, const cv::Scalar& colour) {
+    cv::putText(img, text, cv::Point(10, y), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(0, 0, 0), 4,
+                cv::LINE_AA);
+    cv::putText(img, text, cv::Point(10, y), cv::FONT_HERSHEY_SIMPLEX, 0.6, colour, 1, cv::LINE_AA);
+    y += 22;
+  };
+  legend(std::to_string(d.whiskers.size()) + " whiskers found (face " + rt::to_string(d.face) + ")",
+         cv::Scalar(255, 255, 255));
+  for (const auto& [reason, colour] : reasons) {
+    if (counts.count(reason)) legend(std::to_string(counts[reason]) + " " + reason, colour);
+  }
+  if (!cv::imwrite(path, img)) throw InputError(path + ": cannot write the detection picture");
+}
+
 nlohmann::json point(const Eigen::Vector2d& p) {
   return {p.x(), p.y()};
 }
@@ -285,6 +346,9 @@ void print_whisker_summary(const WhiskerTrackArgs& args, int processed, int whis
   }
   std::cout << "  results: " << args.out << "\n";
   if (!args.overlay.empty()) std::cout << "  overlay: " << args.overlay << "\n";
+  if (!args.detection_picture.empty()) {
+    std::cout << "  detection picture: " << args.detection_picture << "\n";
+  }
   if (!args.csv.empty()) std::cout << "  table: " << args.csv << "\n";
   if (!args.hdf5.empty()) std::cout << "  HDF5: " << args.hdf5 << "\n";
   if (!args.plots.empty()) std::cout << "  plots: " << args.plots << "/whisker_<id>.png\n";
@@ -404,6 +468,13 @@ int run_whiskers(const WhiskerTrackArgs& args) {
         series.back().id = w;
       }
       if (!args.hdf5.empty()) hdf5 = open_hdf5(args, tracker, value_columns, si, centrelines);
+      if (!args.detection_picture.empty()) {
+        // The session's detection again, keeping the traces it did not accept (the same options,
+        // so the same whiskers).
+        rt::WhiskerDetectionOptions o = session_options.detection;
+        o.keep_rejected = true;
+        write_detection_picture(grey, rt::detect_whiskers(view, o), args.detection_picture);
+      }
     }
     const double seconds = session.tracking_seconds();
     latencies.push_back(seconds * 1e6);

@@ -38,6 +38,9 @@ struct WhiskerTrackArgs {
   std::string plots;
   /// HDF5 file with the table and the full centrelines (tools/track/whisker_hdf5.hpp; empty: none).
   std::string hdf5;
+  /// PNG of the first frame's detection, magnified: every whisker found (id colour, follicle dot)
+  /// and every trace that was not, coloured by the reason (empty: none).
+  std::string detection_picture;
 };
 
 /// Runs it; throws InputError on bad input. Returns the exit status.
