@@ -71,14 +71,16 @@ case "$case" in
     "$bin/sinew-track" --input "$video" --whiskers --face left --out "$work/results.jsonl" \
       --overlay "$work/overlay.mp4"
     # Never on the pole. Detection runs on every frame (--redetect every, the default) and lost
-    # whiskers restart on theirs, as do fits that strayed from theirs. On a dark ridge: 97.7 % of
-    # the tracked (ok or not converged) whisker-frames, 95.2 % of all; with OpenCV's AVX2 paths
+    # whiskers restart on theirs, as do fits that strayed from theirs. On a dark ridge: 98.2 % of
+    # the tracked (ok or not converged) whisker-frames, 95.7 % of all; with OpenCV's AVX2 paths
     # off (OPENCV_CPU_DISABLE=AVX2,FMA3, as on an older CPU, where the detection's filters round
-    # differently) the same; the video's mirror images (scripts/whisker_variants.py) 94.7-95.3 %
-    # of all, so a bound at the 95 % would flip with rounding. The bounds leave room for
-    # other machines (before the follicle's 6-grey-level step: 95.4 % and 90.9 %). Follicle jumps
-    # of more than 8 px between tracked frames: 41 (the mirror images 38-43); 57 (51-73) before
-    # fits whose follicle passed a neighbour's were discarded (follicle_order_px).
+    # differently) 98.4 / 95.9 %; the video's mirror images (scripts/whisker_variants.py)
+    # 95.4-95.6 % of all (94.7-95.3 before the follicle was oriented by the pad, 2026-12-06), so a
+    # bound at the 95 % could flip with rounding. The bounds leave room for other machines
+    # (before the follicle's 6-grey-level step: 95.4 % and 90.9 %). Follicle jumps of more than
+    # 8 px between tracked frames: 38 (the mirror images 32-38; AVX2 off 36); 41 (38-43) before the
+    # orientation by the pad, 57 (51-73) before fits whose follicle passed a neighbour's were
+    # discarded (follicle_order_px).
     "$py" "$src/scripts/whisker_check.py" --video "$video" --results "$work/results.jsonl" \
       --require 0.95 --require-all 0.93 --max-jumps 52
     ;;
