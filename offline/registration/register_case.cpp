@@ -300,7 +300,8 @@ GaussNewtonOptions gauss_newton_options(const RegistrationCase& c, int max_itera
   *max_marker_error = c.stop.max_marker_error.value_or(1e-3 * scale);
   options.max_marker_error = *max_marker_error / scale;
   options.min_step = c.stop.min_step;
-  options.icp_weight_ramp = c.weights.icp_weight_ramp;
+  options.icp_weight_ramp = c.weights.icp_weight_ramp.value_or(
+      default_icp_weight_ramp(c.landmarks.size() > 0 && c.weights.icp_stage_landmarks));
   options.icp_point_to_plane_iterations = c.weights.icp_point_to_plane_iterations;
   options.icp_stage_landmarks = c.weights.icp_stage_landmarks;
   options.landmark_stage = c.weights.landmark_stage;

@@ -52,6 +52,21 @@ struct PointPairSet {
   Eigen::Index size() const { return template_points.rows(); }
 };
 
+/// The ICP weight ramp of a case that does not give one (RegistrationWeights::icp_weight_ramp).
+/// Without landmarks: 1e-3, 1e-2, 1e-1 of alpha, three iterations each (9). With landmarks: every
+/// decade from 1e-7 to 1e-1, three iterations each (21; register_case passes landmarks = the case
+/// has landmarks and keeps them in the ICP stage): at 1e-7·alpha the markers barely weigh
+/// against the plastic strain's smoothness, so the first steps move only the smoothest fields
+/// while the closest points settle, and each decade lets finer detail in. That needs the
+/// extremities held: ICP markers pull a surface that falls short of them but not one that runs
+/// past them (their closest points then lie on its sides), so a smooth field grows the ends of
+/// an object whose ends only markers define. Measured (docs/registration.md "A ramp from 1e-7"):
+/// the shared vertebrae (10 landmarks at the processes' tips) 0.756 / 0.541 / 0.569 → 0.597 /
+/// 0.487 / 0.555 mm mean symmetric surface distance; the gluteus medius without landmarks 0.67
+/// → 1.32 mm forward (its ends 4-6 mm past the markers), with two landmarks at its ends 0.74 →
+/// 0.75 mm.
+std::vector<double> default_icp_weight_ramp(bool landmarks);
+
 struct RegistrationWeights {
   double alpha = 1e5;  ///< landmarks and ICP markers, per diagonal² of misfit; > 0
   /// Attachments in the objective, per diagonal²; ≥ 0. Default: 1e4 when attachments are the
@@ -61,8 +76,9 @@ struct RegistrationWeights {
   std::optional<double> beta;
   double attachment_stiffness = 10;  ///< spring of each attachment, μ·diagonal; > 0
   /// ICP continuation (GaussNewtonOptions::icp_weight_ramp): factors of alpha for the
-  /// first ICP iterations, each in (0, 1]. Default: 1e-3, 1e-2, 1e-1, three iterations each.
-  std::vector<double> icp_weight_ramp = {1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2, 1e-1, 1e-1, 1e-1};
+  /// first ICP iterations, each in (0, 1]. std::nullopt (the default):
+  /// default_icp_weight_ramp(whether the case has landmarks).
+  std::optional<std::vector<double>> icp_weight_ramp;
   /// ICP iterations whose markers count point to plane before point to point
   /// (GaussNewtonOptions::icp_point_to_plane_iterations); ≥ 0. Default 10 (measured:
   /// femur pair 0.391 → 0.335 mm mean symmetric distance; gluteus medius 2.04 / 0.73 → 0.73 /
@@ -77,8 +93,8 @@ struct RegistrationWeights {
 };
 
 struct RegistrationStop {
-  /// ≥ 0. 40: the ICP stage's ramp and point-to-plane phase take the first 10, and the damped
-  /// steps (Solver::damped_step_trials) of the vertebrae need 15-30 more to meet the markers.
+  /// ≥ 0. 40: the ICP stage's ramp takes the first 9 or 21 (default_icp_weight_ramp), and the
+  /// vertebrae meet their markers within 2-6 more.
   int max_iterations_per_stage = 40;
   /// ICP stop tolerance in the case's units; std::nullopt: 0.1% of the template's diagonal.
   std::optional<double> max_marker_error;

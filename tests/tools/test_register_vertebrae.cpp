@@ -31,12 +31,11 @@ const fs::path kData = fs::path(SINEW_SHARED_DIR) / "data" / "vertebrae";
 
 struct VertebraCase {
   const char* name;
-  // What the method reaches (docs/registration.md: 0.756 / 0.541 / 0.569 mm with the tool's
-  // thickness-sized mesh, held clamped tets and no-progress stop; the factorisations of meshes
-  // this size use no BLAS, so the same with every OpenBLAS kernel) with a margin (another mesh of
-  // the same template moves them by up to 0.06 mm). The issue asks for 0.9 × the thin-plate-spline
-  // non-rigid ICP peer (0.79 / 0.49 / 0.77 mm): met by sub-verse013 and 023; 018 beats the peer
-  // itself (0.55), not 0.9 × it.
+  // What the method reaches (docs/registration.md "A ramp from 1e-7": 0.597 / 0.487 / 0.555 mm
+  // with the tool's defaults, whose ICP weight ramp starts at 1e-7 when landmarks are given; the
+  // factorisations of meshes this size use no BLAS, so the same with every OpenBLAS kernel) with
+  // a margin for rounding elsewhere (other mesh draws of the same template give 018 0.490-0.495).
+  // The issue asks for 0.9 × the thin-plate-spline non-rigid ICP peer: 0.79 / 0.49 / 0.77 mm.
   double max_symmetric_distance;
   // Whether the ICP stage must end by a convergence test (all three do now).
   bool converges;
@@ -94,9 +93,9 @@ TEST_P(RegisterVertebra, MeetsMarkersAndLandmarksWithoutAFailedLineSearch) {
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedCases, RegisterVertebra,
-                         ::testing::Values(VertebraCase{"sub-verse013", 0.79, true},
-                                           VertebraCase{"sub-verse018", 0.60, true},
-                                           VertebraCase{"sub-verse023", 0.65, true}),
+                         ::testing::Values(VertebraCase{"sub-verse013", 0.65, true},
+                                           VertebraCase{"sub-verse018", 0.52, true},
+                                           VertebraCase{"sub-verse023", 0.60, true}),
                          [](const ::testing::TestParamInfo<VertebraCase>& param) {
                            std::string name = param.param.name;
                            for (char& ch : name)

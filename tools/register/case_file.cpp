@@ -296,12 +296,13 @@ RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::s
     if (w.has("icp_weight_ramp")) {
       const JsonCursor ramp = w.at("icp_weight_ramp");
       if (!ramp.value().is_array()) ramp.fail("must be a list of factors in (0, 1]");
-      c.weights.icp_weight_ramp.clear();
+      std::vector<double> factors;
       for (std::size_t i = 0; i < ramp.array_size(); ++i) {
         const double f = ramp.at(i).finite_number();
         if (!(f > 0 && f <= 1)) ramp.at(i).fail("= " + number(f) + " must be in (0, 1]");
-        c.weights.icp_weight_ramp.push_back(f);
+        factors.push_back(f);
       }
+      c.weights.icp_weight_ramp = factors;
     }
     if (w.has("icp_point_to_plane_iterations")) {
       c.weights.icp_point_to_plane_iterations =

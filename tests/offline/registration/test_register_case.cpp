@@ -114,4 +114,50 @@ TEST(RegisterCase, TooFewMarkersForAFreeObjectIsAnInputError) {
   EXPECT_EQ(prepared, 0);  // stopped before any work
 }
 
+// The ICP weight ramp a case gets when it gives none (default_icp_weight_ramp): from 1e-7 of
+// alpha when landmarks hold the object's extremities through the ICP stage, from 1e-3 otherwise;
+// a ramp the case gives is kept. Read from the prepared problem, before any solve.
+TEST(RegisterCase, DefaultRampStartsLowerWhenLandmarksHoldTheExtremities) {
+  const auto dir = sinew::testing::scratch_dir("register_case_ramp");
+  const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
+  sinew::tools::write_demo_case(demo, dir.string());
+  const sinew::offline::RegistrationCase read =
+      sinew::tools::read_registration_case((dir / "case.json").string());
+  struct Stop {};
+  auto ramp_of = [](const sinew::offline::RegistrationCase& c) {
+    std::vector<double> ramp;
+    sinew::offline::RegisterCaseHooks hooks;
+    hooks.prepared = [&](const sinew::offline::PreparedCase& p) {
+      ramp = p.options.icp_weight_ramp;
+      throw Stop{};
+    };
+    EXPECT_THROW(sinew::offline::register_case(c, {}, hooks), Stop);
+    return ramp;
+  };
+  sinew::offline::RegistrationCase c = read;
+  c.landmarks = {};
+  const std::vector<double> without = ramp_of(c);
+  ASSERT_EQ(without.size(), 9u);
+  EXPECT_DOUBLE_EQ(without.front(), 1e-3);
+  EXPECT_DOUBLE_EQ(without.back(), 1e-1);
+
+  // Two landmarks: two template vertices, held where they are.
+  c.landmarks.template_points = demo.template_surface.vertices.topRows(2);
+  c.landmarks.target_points = demo.template_surface.vertices.topRows(2);
+  const std::vector<double> with = ramp_of(c);
+  ASSERT_EQ(with.size(), 21u);
+  EXPECT_DOUBLE_EQ(with.front(), 1e-7);
+  EXPECT_DOUBLE_EQ(with[3], 1e-6);
+  EXPECT_DOUBLE_EQ(with.back(), 1e-1);
+
+  // Landmarks left out of the ICP stage hold nothing there: the short ramp.
+  c.weights.icp_stage_landmarks = false;
+  EXPECT_EQ(ramp_of(c).size(), 9u);
+
+  // A ramp the case gives is the ramp.
+  c.weights.icp_stage_landmarks = true;
+  c.weights.icp_weight_ramp = std::vector<double>{0.5};
+  EXPECT_EQ(ramp_of(c), std::vector<double>{0.5});
+}
+
 }  // namespace
