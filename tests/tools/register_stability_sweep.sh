@@ -15,7 +15,8 @@
 #
 # The case is a free object like the vertebrae of ../shared/data/vertebrae, built from the demo
 # case by make_free_demo_case.py (its attachments dropped, eight landmarks, its 80 ICP markers, a
-# coarse mesh and 12 iterations so that each run takes seconds).
+# coarse mesh and 26 iterations, the last 5 after the ICP weight ramp, so that each run takes
+# seconds).
 #
 #   register_stability_sweep.sh SINEW_REGISTER [EXTRA_SOLVER_JSON]
 #
