@@ -20,12 +20,25 @@ namespace {
 
 using sinew::offline::io::SurfaceMesh;
 
+// The demo case of scripts/demo written into a scratch folder and read back as sinew-register
+// reads it.
+struct DemoCaseFiles {
+  sinew::tools::DemoCase demo;
+  sinew::offline::RegistrationCase c;
+};
+
+DemoCaseFiles demo_case_in(const std::string& folder) {
+  const auto dir = sinew::testing::scratch_dir(folder);
+  DemoCaseFiles files{sinew::tools::make_demo_case(), {}};
+  sinew::tools::write_demo_case(files.demo, dir.string());
+  files.c = sinew::tools::read_registration_case((dir / "case.json").string());
+  return files;
+}
+
 TEST(RegisterCase, DemoCaseMeetsItsKnownDeformation) {
-  const auto dir = sinew::testing::scratch_dir("register_case_demo");
-  const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
-  sinew::tools::write_demo_case(demo, dir.string());
-  const sinew::offline::RegistrationCase c =
-      sinew::tools::read_registration_case((dir / "case.json").string());
+  const DemoCaseFiles files = demo_case_in("register_case_demo");
+  const sinew::tools::DemoCase& demo = files.demo;
+  const sinew::offline::RegistrationCase& c = files.c;
 
   std::vector<std::string> messages;
   int iterations = 0, checkpoints = 0, prepared = 0;
@@ -95,11 +108,7 @@ TEST(RegisterCase, DemoCaseMeetsItsKnownDeformation) {
 }
 
 TEST(RegisterCase, TooFewMarkersForAFreeObjectIsAnInputError) {
-  const auto dir = sinew::testing::scratch_dir("register_case_free");
-  sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
-  sinew::tools::write_demo_case(demo, dir.string());
-  sinew::offline::RegistrationCase c =
-      sinew::tools::read_registration_case((dir / "case.json").string());
+  sinew::offline::RegistrationCase c = demo_case_in("register_case_free").c;
   c.attachments = {};
   c.icp_markers = c.icp_markers.topRows(2).eval();
   int prepared = 0;
@@ -118,11 +127,8 @@ TEST(RegisterCase, TooFewMarkersForAFreeObjectIsAnInputError) {
 // alpha when landmarks hold the object's extremities through the ICP stage, from 1e-3 otherwise;
 // a ramp the case gives is kept. Read from the prepared problem, before any solve.
 TEST(RegisterCase, DefaultRampStartsLowerWhenLandmarksHoldTheExtremities) {
-  const auto dir = sinew::testing::scratch_dir("register_case_ramp");
-  const sinew::tools::DemoCase demo = sinew::tools::make_demo_case();
-  sinew::tools::write_demo_case(demo, dir.string());
-  const sinew::offline::RegistrationCase read =
-      sinew::tools::read_registration_case((dir / "case.json").string());
+  const DemoCaseFiles files = demo_case_in("register_case_ramp");
+  const sinew::tools::DemoCase& demo = files.demo;
   struct Stop {};
   auto ramp_of = [](const sinew::offline::RegistrationCase& c) {
     std::vector<double> ramp;
@@ -134,7 +140,7 @@ TEST(RegisterCase, DefaultRampStartsLowerWhenLandmarksHoldTheExtremities) {
     EXPECT_THROW(sinew::offline::register_case(c, {}, hooks), Stop);
     return ramp;
   };
-  sinew::offline::RegistrationCase c = read;
+  sinew::offline::RegistrationCase c = files.c;
   c.landmarks = {};
   const std::vector<double> without = ramp_of(c);
   ASSERT_EQ(without.size(), 9u);
