@@ -12,6 +12,7 @@
 #include <string>
 
 #include "rt/tracker.hpp"
+#include "rt/whisker/readout.hpp"
 #include "rt/whisker/session.hpp"
 #include "tools/simulate/simulation.hpp"
 #include "tools/track/track_init.hpp"
@@ -249,7 +250,7 @@ class PyWhiskers {
              double mm_per_px, double young_modulus_gpa, double base_radius_um,
              double tip_radius_um, double length_mm, double axis_angle_deg,
              std::pair<double, double> curvature_window, int moment_elements, int rest_frame,
-             int rest_frames, double associate_home_px) {
+             int rest_frames, double associate_home_px, const std::string& whisker_preset) {
     rt::WhiskerSessionOptions o;
     o.tracker.associate_home_px = associate_home_px;
     o.detection.face = face_side(face);
@@ -260,6 +261,16 @@ class PyWhiskers {
     o.readout.physics.base_radius_um = base_radius_um;
     o.readout.physics.tip_radius_um = tip_radius_um;
     o.readout.physics.length_mm = length_mm;
+    if (!whisker_preset.empty()) {
+      // The preset's values where a keyword was left at its default.
+      const auto preset = rt::whisker_preset(whisker_preset);
+      if (!preset) throw py::value_error("whisker_preset: unknown name '" + whisker_preset + "'");
+      rt::WhiskerPhysics& p = o.readout.physics;
+      if (young_modulus_gpa == 3.34) p.young_modulus_gpa = preset->young_modulus_gpa;
+      if (base_radius_um == 0.0) p.base_radius_um = preset->base_radius_um;
+      if (tip_radius_um == 0.0) p.tip_radius_um = preset->tip_radius_um;
+      if (length_mm == 0.0) p.length_mm = preset->length_mm;
+    }
     o.readout.axis_angle_deg = axis_angle_deg;
     o.readout.curvature_from_px = curvature_window.first;
     o.readout.curvature_to_px = curvature_window.second;
@@ -459,18 +470,20 @@ identities, their mechanics and their contacts: sinew-track --whiskers, frame by
 
 Whiskers(face='auto', redetect='every', min_length_px=40, mm_per_px=0, young_modulus_gpa=3.34,
 base_radius_um=0, tip_radius_um=0, length_mm=0, axis_angle_deg=0, curvature_window=(0, 30),
-moment_elements=3, rest_frame=0, rest_frames=1, associate_home_px=0): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
-the radii, curvature and moment are in pixel model units.
+moment_elements=3, rest_frame=0, rest_frames=1, associate_home_px=0, whisker_preset=''): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
+the radii, curvature and moment are in pixel model units. whisker_preset='rat-c2' takes the modulus,
+radii and length from the literature (docs/tracker.md); keywords given other values override them.
 )doc")
       .def(py::init<const std::string&, const std::string&, double, double, double, double, double,
-                    double, double, std::pair<double, double>, int, int, int, double>(),
+                    double, double, std::pair<double, double>, int, int, int, double,
+                    const std::string&>(),
            py::arg("face") = "auto", py::arg("redetect") = "every", py::arg("min_length_px") = 40.0,
            py::arg("mm_per_px") = 0.0, py::arg("young_modulus_gpa") = 3.34,
            py::arg("base_radius_um") = 0.0, py::arg("tip_radius_um") = 0.0,
            py::arg("length_mm") = 0.0, py::arg("axis_angle_deg") = 0.0,
            py::arg("curvature_window") = std::pair<double, double>(0.0, 30.0),
            py::arg("moment_elements") = 3, py::arg("rest_frame") = 0, py::arg("rest_frames") = 1,
-           py::arg("associate_home_px") = 0.0)
+           py::arg("associate_home_px") = 0.0, py::arg("whisker_preset") = "")
       .def("track", &PyWhiskers::track, py::arg("frame"), R"doc(
 Processes one grey frame (2-D uint8 numpy array, read in place): detection on the first, then
 tracking, detection again and association (redetect), read-out and contact. Returns a dict with

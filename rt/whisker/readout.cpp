@@ -22,6 +22,23 @@ double wrap_degrees(double a) {
 
 }  // namespace
 
+std::optional<WhiskerPhysics> whisker_preset(std::string_view name) {
+  if (name == "rat-c2") {
+    WhiskerPhysics p;
+    p.young_modulus_gpa = 3.34;  // Quist, Faruqi and Hartmann 2011
+    p.base_radius_um = 69.5;     // Belli et al. 2017, mean of the C2 whiskers
+    p.tip_radius_um = 1.6;       // the same table, C2 whiskers with a measured tip
+    p.length_mm = 33.6;          // the same table
+    return p;
+  }
+  return std::nullopt;
+}
+
+const std::vector<std::string>& whisker_preset_names() {
+  static const std::vector<std::string> names = {"rat-c2"};
+  return names;
+}
+
 std::optional<std::string> WhiskerPhysics::validate() const {
   if (!(mm_per_px >= 0.0)) return field_error("mm_per_px", mm_per_px, "must be >= 0");
   if (!(young_modulus_gpa > 0.0))

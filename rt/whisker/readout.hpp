@@ -26,6 +26,8 @@
 #include <Eigen/Core>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "common/beam/beam_element.hpp"
 #include "rt/tracker.hpp"
@@ -56,6 +58,21 @@ struct WhiskerPhysics {
   common::BeamSection section_at(double s_mm, double whisker_length_mm) const;
   std::optional<std::string> validate() const;
 };
+
+/// A named whisker's material and taper from the literature (the image scale stays 0: it is the
+/// camera's, not the whisker's); std::nullopt for a name it does not know. Known:
+/// - "rat-c2": the rat's C2 whisker. Length 33.6 mm and base radius 69.5 µm (diameter 139 µm):
+///   the means of the C2 whiskers in the per-whisker table pooled from seven studies by Belli,
+///   Yang, Bresee and Hartmann 2017 (J. Neurophysiol. 117:1807, supplemental table 1); tip radius
+///   1.6 µm: the mean of that table's C2 whiskers with a measured tip; Young's modulus 3.34 GPa:
+///   tensile tests of 22 rat vibrissae (Quist, Faruqi and Hartmann 2011, J. Biomech. 44:2775;
+///   ±1.48 GPa between whiskers). Individual whiskers differ from these means by ~10 % in radius
+///   (so ~40 % in E·I): measure your animal's where the forces matter.
+/// No mouse whisker yet: the sources at hand give a mouse C2's length (16.1 mm from the equations
+/// of Bresee et al. 2023, J. Exp. Biol. 226:jeb245597) but not its radius or modulus.
+std::optional<WhiskerPhysics> whisker_preset(std::string_view name);
+/// The names whisker_preset() knows, for help texts and error messages.
+const std::vector<std::string>& whisker_preset_names();
 
 struct WhiskerReadoutOptions {
   WhiskerPhysics physics;

@@ -99,3 +99,22 @@ def test_bad_options_raise():
         sinew.Whiskers(face="sideways")
     with pytest.raises(ValueError, match="base_radius_um"):
         sinew.Whiskers(mm_per_px=0.05)
+
+
+def test_whisker_preset_is_its_values(pad):
+    _, _, frames, _ = pad
+    preset = sinew.Whiskers(face="left", mm_per_px=0.05, whisker_preset="rat-c2")
+    given = sinew.Whiskers(face="left", mm_per_px=0.05, young_modulus_gpa=3.34,
+                           base_radius_um=69.5, tip_radius_um=1.6, length_mm=33.6)
+    compared = 0
+    for frame in frames[:6]:
+        a, b = preset.track(frame), given.track(frame)
+        for wa, wb in zip(a["whiskers"], b["whiskers"]):
+            assert wa.keys() == wb.keys()
+            for key, value in wa.items():
+                if isinstance(value, float):
+                    assert value == wb[key], key
+                    compared += key.endswith("_Nm") or key.startswith("m0")
+    assert compared > 0
+    with pytest.raises(ValueError, match="whisker_preset"):
+        sinew.Whiskers(whisker_preset="mouse-x")

@@ -320,5 +320,30 @@ TEST(WhiskerReadout, BadOptionsAreNamed) {
   EXPECT_NE(m2.error().find("beyond the whisker"), std::string::npos) << m2.error();
 }
 
+// The rat C2 preset: the literature's values (readout.hpp names the sources), a valid whisker once
+// a scale is given, E·I = E·π·r⁴/4 at its follicle and its tip; other names are unknown.
+TEST(WhiskerPreset, RatC2IsATaperedConeOfTheLiteraturesSize) {
+  const auto rat = whisker_preset("rat-c2");
+  ASSERT_TRUE(rat.has_value());
+  EXPECT_EQ(rat->young_modulus_gpa, 3.34);
+  EXPECT_EQ(rat->base_radius_um, 69.5);
+  EXPECT_EQ(rat->tip_radius_um, 1.6);
+  EXPECT_EQ(rat->length_mm, 33.6);
+  EXPECT_EQ(rat->mm_per_px, 0.0);  // the camera's, not the whisker's
+  WhiskerPhysics scaled = *rat;
+  scaled.mm_per_px = 0.05;
+  EXPECT_FALSE(scaled.validate().has_value());
+  const double base_ei = 3.34e9 * M_PI * std::pow(69.5e-6, 4) / 4.0;  // about 6.1e-8 N·m²
+  const double tip_ei = 3.34e9 * M_PI * std::pow(1.6e-6, 4) / 4.0;
+  EXPECT_NEAR(scaled.section_at(0.0, 0.0).EI, base_ei, 1e-9 * base_ei);
+  EXPECT_NEAR(scaled.section_at(33.6, 0.0).EI, tip_ei, 1e-9 * tip_ei);
+  const double mid_radius = 0.5 * (69.5e-6 + 1.6e-6);
+  const double mid_ei = 3.34e9 * M_PI * std::pow(mid_radius, 4) / 4.0;
+  EXPECT_NEAR(scaled.section_at(16.8, 0.0).EI, mid_ei, 1e-9 * mid_ei);
+  EXPECT_FALSE(whisker_preset("mouse-c2").has_value());
+  EXPECT_FALSE(whisker_preset("").has_value());
+  EXPECT_EQ(whisker_preset_names(), std::vector<std::string>{"rat-c2"});
+}
+
 }  // namespace
 }  // namespace sinew::rt

@@ -192,4 +192,56 @@ TEST(SinewTrack, WhiskerDetectionPictureMarksEveryFollicleFound) {
   }
 }
 
+// --whisker-preset rat-c2 is the same as its four values given one by one, and a value given beside
+// it overrides the preset's: a thinner base radius scales the follicle's moment by about the
+// fourth power of the radii (E·I of a circle), and an unknown name is refused.
+TEST(SinewTrack, AWhiskerPresetIsItsValuesAndAGivenValueOverridesIt) {
+  const fs::path dir = sinew::testing::scratch_dir("sinew_track_whisker_preset");
+  auto r = run_tool(kBin + "sinew-synth --scenario whisker-pad --frames 8 --whiskers 4 --out " +
+                        (dir / "pad").string(),
+                    dir);
+  ASSERT_EQ(r.exit_status, 0) << r.err;
+  const auto moments = [&](const std::string& physics) {
+    const fs::path out = dir / "results.jsonl";
+    fs::remove(out);
+    const auto t = run_tool(kBin + "sinew-track --quiet --whiskers --face left --rest-frame 0 " +
+                                "--mm-per-px 0.05 --input " +
+                                (dir / "pad" / "frames" / "f_%04d.png").string() + " --out " +
+                                out.string() + " " + physics,
+                            dir);
+    EXPECT_EQ(t.exit_status, 0) << t.err;
+    std::vector<double> m0;
+    std::istringstream in(read_text(out));
+    for (std::string line; std::getline(in, line);) {
+      const auto j = nlohmann::json::parse(line);
+      if (!j.contains("whiskers")) continue;
+      for (const auto& w : j["whiskers"]) {
+        if (w.contains("m0_N_m")) m0.push_back(w["m0_N_m"].get<double>());
+      }
+    }
+    return m0;
+  };
+  const auto preset = moments("--whisker-preset rat-c2");
+  const auto given = moments(
+      "--young-modulus-gpa 3.34 --base-radius-um 69.5 --tip-radius-um 1.6 --whisker-length-mm "
+      "33.6");
+  const auto thinner = moments("--whisker-preset rat-c2 --base-radius-um 50");
+  ASSERT_GE(preset.size(), 20u);
+  ASSERT_EQ(preset, given);
+  ASSERT_EQ(thinner.size(), preset.size());
+  const double expected = std::pow(50.0 / 69.5, 4);
+  int compared = 0;
+  for (std::size_t i = 0; i < preset.size(); ++i) {
+    if (std::abs(preset[i]) < 1e-12) continue;
+    EXPECT_NEAR(thinner[i] / preset[i], expected, 0.05 * expected) << i;
+    ++compared;
+  }
+  EXPECT_GE(compared, 10);
+  r = run_tool(kBin + "sinew-track --quiet --whiskers --whisker-preset mouse-x --input " +
+                   (dir / "pad" / "frames" / "f_%04d.png").string(),
+               dir);
+  EXPECT_EQ(r.exit_status, 2);
+  EXPECT_NE((r.out + r.err).find("rat-c2"), std::string::npos) << r.out << r.err;
+}
+
 }  // namespace

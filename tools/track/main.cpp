@@ -20,6 +20,7 @@
 
 #include "rt/stabilisation.hpp"
 #include "rt/tracker.hpp"
+#include "rt/whisker/readout.hpp"
 #include "tools/io/beam_json.hpp"
 #include "tools/track/frame_source.hpp"
 #include "tools/track/overlay_sink.hpp"
@@ -481,6 +482,11 @@ int main(int argc, char** argv) {
                  "--whiskers: image scale; with it moments, forces and curvatures are in SI "
                  "units (needs --base-radius-um)")
       ->check(CLI::NonNegativeNumber);
+  std::string whisker_preset;
+  app.add_option("--whisker-preset", whisker_preset,
+                 "--whiskers: a whisker's modulus, radii and length from the literature (rat-c2; "
+                 "sources in docs/tracker.md); the options below override single values")
+      ->check(CLI::IsMember(rt::whisker_preset_names()));
   app.add_option("--young-modulus-gpa", readout.physics.young_modulus_gpa,
                  "--whiskers: Young's modulus (default 3.34, rat vibrissae, Quist et al. 2011)");
   app.add_option("--base-radius-um", readout.physics.base_radius_um,
@@ -567,6 +573,17 @@ int main(int argc, char** argv) {
       w.redetect = redetect;
       w.rest_frame = rest_frame;
       w.rest_frames = rest_frames;
+      if (!whisker_preset.empty()) {
+        // The preset, then every value given on the command line over it.
+        const rt::WhiskerPhysics given = readout.physics;
+        readout.physics = *rt::whisker_preset(whisker_preset);
+        readout.physics.mm_per_px = given.mm_per_px;
+        if (app.count("--young-modulus-gpa"))
+          readout.physics.young_modulus_gpa = given.young_modulus_gpa;
+        if (app.count("--base-radius-um")) readout.physics.base_radius_um = given.base_radius_um;
+        if (app.count("--tip-radius-um")) readout.physics.tip_radius_um = given.tip_radius_um;
+        if (app.count("--whisker-length-mm")) readout.physics.length_mm = given.length_mm;
+      }
       if (!curvature_window.empty()) {
         readout.curvature_from_px = curvature_window[0];
         readout.curvature_to_px = curvature_window[1];
