@@ -6,25 +6,31 @@ Cramer-Rao bound on the relative error of the contact force's magnitude, and wit
 moment about the follicle (their ratio, the lever arm, is taken as known). Written apart from the
 tracker (numpy only) so that it says what the images allow, not what one method reaches.
 
-The model, and every simplification makes the bound lower, never higher:
-- The frame is the rendered one: a whisker darkening its pixels by c(s) = contrast (1 - 0.6 s/L)
-  over its width with 1-px anti-aliased edges (tools/synth/whisker_pad.cpp), plus white Gaussian
-  noise of sigma grey levels. Moving the centreline by delta along its normal at arc length s
-  changes the two edge ramps by c(s) delta each, so each pixel of length carries Fisher information
-  2 c(s)^2 / sigma^2 about the normal displacement there.
+The model; every simplification gives the estimator more than the frame holds, so the bound is
+lower, never higher, than the true one:
+- The frame is the synth's: the whisker's darkening (draw() copies tools/synth/whisker_pad.cpp's
+  draw_whisker) plus white Gaussian noise of sigma grey levels. Ignored, each of which would only
+  lose information: 8-bit rounding and saturation, and the floor that keeps a whisker over the
+  face or the pole from darkening them fully.
 - The load's effect on the shape is the truth's own deflection: the frame's centreline minus the
-  rest frame's, turned by the frame's base angle about its follicle (w(s), along the normal). To
-  first order a load (1 + e) times the true one moves the centreline by e w(s).
-- Known exactly (given to the estimator for free): the follicle's position, the rest shape, the
-  contact point, the contrast, the backlight. Unknown: the load's size and the base angle (the
-  whisking the load must be told apart from: a turn moves the curve by t(s).(p(s) - p0) along the
-  normal).
-So the bound on the load's relative standard deviation is sqrt((J^-1)_FF) with
-J = sum over the curve of 2 c^2 / sigma^2 [w, r][w, r]^T ds. A load that differs by the factor
-1.05/0.95 (the closest pair an estimator within 5 % of every truth must tell apart) changes the
-image by d' = 0.105 sqrt(J_FF - J_Fr^2 / J_rr) noise units after the best compensating turn; any
-estimator, biased or not, is then more than 5 % off on at least one of the two with probability
-Phi(-d'/2) or more.
+  rest frame's, turned by the frame's base angle about its follicle (exactly zero on every free
+  frame). To first order a load (1 + e) times the true one moves each node by e times it.
+- Given to the estimator for free: the rest shape, the contact point, the contrast, the backlight
+  and the follicle's position. Unknown: the load's size and the turn about the follicle (the
+  whisking the load must be told apart from).
+- Information: J = C^T C / sigma^2, C the drawing's change per unit step of each parameter (finite
+  differences of 5e-4: linear, as tests/python/test_whisker_load_bound.py checks). This counts
+  everything the drawn frame holds, the ends included (its tip ends abruptly at 40 % contrast and
+  its first pixels lie on the face's edge); continuous_information() counts only the sides along
+  the length (2 c(s)^2 / sigma^2 per px), as a real whisker's fading tip and furred follicle would
+  leave it, and gives a higher bound.
+The bound on the load's relative standard deviation is sqrt((J^-1)_FF) over (load, turn). A load
+that differs by the factor 1.05/0.95 (the closest pair an estimator within 5 % of every truth must
+tell apart) changes the image by d' = 0.105 sqrt(J_FF - J_Ft^2 / J_tt) noise units after the best
+compensating turn; any estimator, biased or not, is then more than 5 % off on at least one of the
+two with probability Phi(-d'/2) or more. Also per frame: the bound when the follicle's position
+across the whisker is unknown too (a tracker reads it from the whisker itself; the face's edge
+fixes it only along the whisker).
 
 Prints one line per contact frame (with --results, the tracker's own error beside it) and a
 summary: on how many contact frames the bound's standard deviation alone exceeds 5 % (moment)
@@ -54,24 +60,83 @@ def rotation(deg):
     return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
 
 
-def information(curve, deflection, contrast, sigma, step=0.25):
-    """J (2 x 2) for (relative load, base angle) of one frame. curve: the frame's centreline (n x 2,
-    follicle first); deflection: the load's displacement of each node (n x 2)."""
+def draw(curve, contrast, box):
+    """The synth's whisker (tools/synth/whisker_pad.cpp, draw_whisker): its darkening, grey levels,
+    over the pixels of box = (x0, y0, x1, y1): each chord sampled every <= 0.25 px, each sample
+    darkening the pixels within its half width (1.5 -> 0.5 px, anti-aliased) by its contrast
+    (falling to 40 % at the tip), the darkest sample winning."""
+    s_nodes = arc_lengths(curve)
+    length = s_nodes[-1]
+    p, s = [], []
+    for i in range(len(curve) - 1):
+        seg = s_nodes[i + 1] - s_nodes[i]
+        steps = max(1, int(np.ceil(seg / 0.25)))
+        t = np.arange(steps + 1) / steps
+        p.append(curve[i] + t[:, None] * (curve[i + 1] - curve[i]))
+        s.append(s_nodes[i] + t * seg)
+    p, s = np.vstack(p), np.concatenate(s)
+    half = 0.5 * (3.0 - 2.0 * s / length)
+    c = contrast * (1.0 - 0.6 * s / length)
+    x, y = np.meshgrid(np.arange(box[0], box[2]), np.arange(box[1], box[3]))
+    dark = np.zeros(x.shape)
+    for i in range(len(s)):
+        cover = np.clip(half[i] + 0.5 - np.hypot(x - p[i, 0], y - p[i, 1]), 0.0, 1.0)
+        dark = np.maximum(dark, c[i] * cover)
+    return dark
+
+
+def box_of(points, margin=5):
+    return (int(points[:, 0].min()) - margin, int(points[:, 1].min()) - margin,
+            int(points[:, 0].max()) + margin + 1, int(points[:, 1].max()) + margin + 1)
+
+
+def directions(curve, deflection):
+    """Each node's displacement per unit of (relative load, turn about the follicle in radians,
+    shift of the follicle across the whisker in px)."""
+    t0 = (curve[1] - curve[0]) / np.linalg.norm(curve[1] - curve[0])
+    n0 = np.array([-t0[1], t0[0]])
+    arm = curve - curve[0]
+    turn = np.column_stack([-arm[:, 1], arm[:, 0]])
+    return [deflection, turn, np.tile(n0, (len(curve), 1))]
+
+
+def information(curve, deflection, contrast, sigma, e=5e-4):
+    """J (3 x 3) for (relative load, turn, the follicle's shift across the whisker) of one frame, from
+    the drawing itself: the image change of a small step e in each, in units of the noise. Exact
+    for the synth's frames (ends, pixel grid and all) to first order. curve: the frame's
+    centreline (n x 2, follicle first); deflection: the load's displacement of each node."""
+    moved = [curve + e * d for d in directions(curve, deflection)]
+    box = box_of(np.vstack([curve] + moved))
+    base = draw(curve, contrast, box)
+    columns = np.column_stack([(draw(m, contrast, box) - base).ravel() / e for m in moved])
+    return columns.T @ columns / (sigma * sigma)
+
+
+def continuous_information(curve, deflection, contrast, sigma, step=0.25):
+    """The same J from a continuous model: moving the centreline by delta along its normal at arc
+    length s changes its two 1-px edge ramps by c(s) delta each, 2 c(s)^2 / sigma^2 of information
+    per px of length, and nothing else (no ends). A check on the drawn one."""
     s_nodes = arc_lengths(curve)
     length = s_nodes[-1]
     s = np.arange(0.0, length + 1e-9, step)
     p = resample(curve, s)
-    d = np.column_stack([np.interp(s, s_nodes, deflection[:, 0]),
-                         np.interp(s, s_nodes, deflection[:, 1])])
     t = np.gradient(p, s, axis=0)
     t /= np.linalg.norm(t, axis=1)[:, None]
     n = np.column_stack([-t[:, 1], t[:, 0]])
-    w = np.sum(d * n, axis=1)                   # normal displacement per unit relative load
-    r = np.sum(t * (p - p[0]), axis=1)          # normal displacement per radian of base turn
+    rows = []
+    for d in directions(curve, deflection):
+        di = np.column_stack([np.interp(s, s_nodes, d[:, 0]), np.interp(s, s_nodes, d[:, 1])])
+        rows.append(np.sum(di * n, axis=1))
+    v = np.vstack(rows)
     c = contrast * (1.0 - 0.6 * s / length)
     density = 2.0 * c * c / (sigma * sigma) * step
-    v = np.vstack([w, r])
-    return (v * density) @ v.T, w
+    return (v * density) @ v.T
+
+
+def normal_deflection(curve, deflection):
+    t = np.gradient(curve, axis=0)
+    t /= np.linalg.norm(t, axis=1)[:, None]
+    return np.sum(deflection * np.column_stack([-t[:, 1], t[:, 0]]), axis=1)
 
 
 def bound_from_information(J):
@@ -80,6 +145,12 @@ def bound_from_information(J):
     if effective <= 0.0:
         return math.inf, 0.0
     return 1.0 / math.sqrt(effective), (1.05 / 0.95 - 1.0) * math.sqrt(effective)
+
+
+def bound_with_follicle_free(J):
+    """The bound on the load's relative sd when the follicle's position across the whisker is
+    unknown too."""
+    return math.sqrt(np.linalg.inv(J)[0, 0])
 
 
 def phi(x):
@@ -119,8 +190,8 @@ def main():
                             np.asarray(w["contact"]["force"])))
                for w in byid if w.get("contact"))
     rows = []
-    print("frame  |M|/peak  max|w| px  bound sd %  d'(1.05/0.95)  P(>5% off) >=" +
-          ("  tracker %" if tracked else ""))
+    print("frame  |M|/peak  max|w| px  bound sd %  d'(1.05/0.95)  P(>5% off) >=  "
+          "sd, follicle across free %" + ("  tracker %" if tracked else ""))
     for k, w in enumerate(byid):
         if k <= args.rest_frame or not w.get("contact"):
             continue
@@ -128,18 +199,21 @@ def main():
         free = curve[0] + rest_local @ rotation(w["base_angle_deg"]).T
         if len(free) != len(curve):
             sys.exit(f"frame {k}: {len(curve)} nodes, rest frame {len(free)}")
-        J, wn = information(curve, curve - free, w["contrast"], args.sigma)
+        J = information(curve, curve - free, w["contrast"], args.sigma)
+        wn = normal_deflection(curve, curve - free)
         sd, dprime = bound_from_information(J)
+        sd_free = bound_with_follicle_free(J)
         lever = np.asarray(w["contact"]["point"]) - np.asarray(w["follicle"])
         moment = float(np.cross(lever, np.asarray(w["contact"]["force"])))
         line = (f"{k:5d}  {abs(moment) / peak:7.3f}  {np.max(np.abs(wn)):9.3f}  "
-                f"{100 * sd:10.2f}  {dprime:13.2f}  {phi(-dprime / 2):13.2f}")
+                f"{100 * sd:10.2f}  {dprime:13.2f}  {phi(-dprime / 2):13.2f}  "
+                f"{100 * sd_free:26.2f}")
         error = None
         if k in tracked:
             error = (tracked[k] - moment) / abs(moment)
             line += f"  {100 * error:+9.1f}"
         print(line)
-        rows.append((k, abs(moment) / peak, sd, dprime, error))
+        rows.append((k, abs(moment) / peak, sd, dprime, error, sd_free))
     if not rows:
         sys.exit("no contact frame after the rest frame")
     sds = np.array([r[2] for r in rows])
@@ -147,6 +221,9 @@ def main():
           f"relative sd: median {100 * np.median(sds):.2f} %, max {100 * np.max(sds):.1f} %; "
           f"frames where it exceeds 5 %: {int(np.sum(sds > 0.05))}, 10 %: "
           f"{int(np.sum(sds > 0.10))}")
+    print(f"the follicle's position across the whisker: with it unknown too the bound is "
+          f"{100 * np.median([r[5] for r in rows]):.2f} % (median; above 5 % on "
+          f"{sum(r[5] > 0.05 for r in rows)} frames)")
     if tracked:
         allowed = [r for r in rows if r[2] <= 0.025 and r[4] is not None]
         within = sum(abs(r[4]) <= 0.05 for r in allowed)

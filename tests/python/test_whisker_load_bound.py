@@ -1,13 +1,14 @@
-"""scripts/whisker_load_bound.py: the information it assumes a rendered whisker carries is what
-sinew-synth's frames carry (at least; so its bound on the load's error is never too high).
+"""scripts/whisker_load_bound.py: the information it counts is what sinew-synth's frames hold, so its
+bound on a contact load's error is one no tracker can beat on them.
 
-1. A numpy copy of the synth's whisker drawing reproduces its noise-free frames (to 8-bit rounding)
+1. Its copy of the synth's whisker drawing reproduces a noise-free frame (to 8-bit rounding)
    along the pressed whisker, away from the face and the pole.
-2. On contact frames, the image change of a small relative load change e (that drawing, on the
-   truth's centreline and on the centreline moved by e times the load's deflection), in units of
-   the noise, is at most the script's e^2 J_FF and not much below it.
-3. On the sliding pole's sequence the bound's standard deviation exceeds 5 % on the onset frames:
-   no estimator reads every contact frame's moment to 5 % there.
+2. Its finite differences are linear: half the step gives the same information.
+3. The drawn information agrees with the continuous model of the sides along the length (the
+   diagonal, to the pixel grid's few per cent) and holds more than it (the ends): its bound is
+   lower.
+4. On the sliding pole's sequence the bound exceeds 5 % on the onset frames: no estimator reads
+   every contact frame's moment to 5 % there; at the largest loads it is about 1 %.
 
 Run by ctest (python_module) with SINEW_BINARY_DIR=<build>.
 """
@@ -38,34 +39,6 @@ def slide(tmp_path_factory):
     return truth, out
 
 
-def draw(curve, contrast, box):
-    """The synth's whisker (tools/synth/whisker_pad.cpp, draw_whisker): darkening in grey levels
-    over the pixels of box = (x0, y0, x1, y1)."""
-    s_nodes = wlb.arc_lengths(curve)
-    length = s_nodes[-1]
-    # Each chord sampled every <= 0.25 px, both its ends included, as the synth does.
-    p, s = [], []
-    for i in range(len(curve) - 1):
-        seg = s_nodes[i + 1] - s_nodes[i]
-        t = np.arange(max(1, int(np.ceil(seg / 0.25))) + 1) / max(1, int(np.ceil(seg / 0.25)))
-        p.append(curve[i] + t[:, None] * (curve[i + 1] - curve[i]))
-        s.append(s_nodes[i] + t * seg)
-    p, s = np.vstack(p), np.concatenate(s)
-    half = 0.5 * (3.0 - 2.0 * s / length)
-    c = contrast * (1.0 - 0.6 * s / length)
-    x, y = np.meshgrid(np.arange(box[0], box[2]), np.arange(box[1], box[3]))
-    dark = np.zeros(x.shape)
-    for i in range(len(s)):
-        cover = np.clip(half[i] + 0.5 - np.hypot(x - p[i, 0], y - p[i, 1]), 0.0, 1.0)
-        dark = np.maximum(dark, c[i] * cover)
-    return dark
-
-
-def box_of(curve, margin=5):
-    return (int(curve[:, 0].min()) - margin, int(curve[:, 1].min()) - margin,
-            int(curve[:, 0].max()) + margin + 1, int(curve[:, 1].max()) + margin + 1)
-
-
 def rest_turned(truth, frame, rest=30):
     r = truth[rest]["whiskers"][0]
     rc = np.asarray(r["centreline"], float)
@@ -79,12 +52,12 @@ def test_the_drawing_is_the_synths(slide):
     truth, out = slide
     frame = 111  # the largest load
     curve, _, w = rest_turned(truth, frame)
-    box = box_of(curve)
+    box = wlb.box_of(curve)
     image = cv2.imread(str(out / f"frames/f_{frame:04d}.png"), cv2.IMREAD_GRAYSCALE).astype(float)
     h, wd = image.shape
     x, y = np.meshgrid(np.arange(box[0], box[2]), np.arange(box[1], box[3]))
     backlight = 140.0 + 50.0 * x / wd + 15.0 * np.sin(np.pi * y / h)
-    expected = backlight - draw(curve, w["contrast"], box)
+    expected = backlight - wlb.draw(curve, w["contrast"], box)
     seen = image[box[1]:box[3], box[0]:box[2]]
     # Within 4 px of the whisker beyond its first 12 px (the face), away from the pole.
     band = wlb.resample(curve, np.arange(12.0, wlb.arc_lengths(curve)[-1], 0.5))
@@ -97,19 +70,22 @@ def test_the_drawing_is_the_synths(slide):
 
 
 @pytest.mark.parametrize("frame", [55, 60, 111, 155, 170])
-def test_the_information_is_the_rendered_images(slide, frame):
+def test_the_information_is_linear_and_holds_the_sides_and_the_ends(slide, frame):
     truth, _ = slide
     curve, free, w = rest_turned(truth, frame)
-    sigma = 4.0
-    J, _ = wlb.information(curve, curve - free, w["contrast"], sigma)
-    e = 0.01
-    moved = curve + e * (curve - free)
-    box = box_of(np.vstack([curve, moved]))
-    change = np.sum((draw(moved, w["contrast"], box) - draw(curve, w["contrast"], box)) ** 2)
-    ratio = change / sigma ** 2 / (e * e * J[0, 0])
-    # Measured 0.94-0.97: the pixel grid and the darkest-sample rule carry a little less than
-    # the continuous edges the script integrates, so its bound is a little low (on the safe side).
-    assert 0.8 < ratio <= 1.0, ratio
+    J = wlb.information(curve, curve - free, w["contrast"], 4.0)
+    half = wlb.information(curve, curve - free, w["contrast"], 4.0, e=2.5e-4)
+    np.testing.assert_allclose(half, J, rtol=0.03, atol=1e-3 * np.max(np.abs(J)))
+    C = wlb.continuous_information(curve, curve - free, w["contrast"], 4.0)
+    # Load, turn and shift across, each alone: measured 0.95-1.02 of the continuous model (the
+    # pixel grid and the darkest-sample rule lose a little) -- the ends add little to any one.
+    for k in range(3):
+        assert 0.85 < J[k, k] / C[k, k] < 1.05, (k, J[k, k], C[k, k])
+    # Together the ends tell a load from a turn that the sides alone confuse (their correlation
+    # -0.98 to -0.99 in the continuous model, -0.97 to -0.98 drawn): the drawn frame's bound is lower.
+    drawn, _ = wlb.bound_from_information(J)
+    sides, _ = wlb.bound_from_information(C)
+    assert drawn < sides, (drawn, sides)
 
 
 def test_no_estimator_reads_the_onsets_to_five_percent(slide):
