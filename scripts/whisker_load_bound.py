@@ -44,15 +44,14 @@ import sys
 import numpy as np
 
 
-def resample(points, s_new):
-    seg = np.diff(points, axis=0)
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))])
-    return np.column_stack([np.interp(s_new, s, points[:, 0]), np.interp(s_new, s, points[:, 1])])
-
-
 def arc_lengths(points):
     seg = np.diff(points, axis=0)
     return np.concatenate([[0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))])
+
+
+def resample(points, s_new):
+    s = arc_lengths(points)
+    return np.column_stack([np.interp(s_new, s, points[:, 0]), np.interp(s_new, s, points[:, 1])])
 
 
 def rotation(deg):
