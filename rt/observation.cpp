@@ -159,14 +159,24 @@ int find_candidates(const float* profile, int origin, float shift, const Profile
   }
 
   // Local maxima within ±range, strongest first (insertion into the short output list).
+  const bool from_profile = search.mode == ObservationMode::kDarkRidge &&
+                            search.ridge_position_from_profile && !search.ridge_mean_surround;
   int found = 0;
   for (int k = origin - range; k <= origin + range; ++k) {
     const float r0 = response[k];
     if (!(r0 >= search.min_strength)) continue;  // most offsets; NaN fails too
     const float rm = response[k - 1], rp = response[k + 1];
     if (!(r0 >= rm) || !(r0 > rp)) continue;
-    const float denom = rm - 2.0f * r0 + rp;
-    float delta = denom < 0.0f ? 0.5f * (rm - rp) / denom : 0.0f;
+    // The vertex of a parabola through the peak and its neighbours: of the response, or of the
+    // profile's darkness (only the centre samples, not the sides' noise).
+    float am = rm, a0 = r0, ap = rp;
+    if (from_profile) {
+      am = -(profile[k - 2] + 2.0f * profile[k - 1] + profile[k]);
+      a0 = -(profile[k - 1] + 2.0f * profile[k] + profile[k + 1]);
+      ap = -(profile[k] + 2.0f * profile[k + 1] + profile[k + 2]);
+    }
+    const float denom = am - 2.0f * a0 + ap;
+    float delta = denom < 0.0f ? 0.5f * (am - ap) / denom : 0.0f;
     if (delta > 0.5f) delta = 0.5f;
     if (delta < -0.5f) delta = -0.5f;
     Candidate c{float(k - origin) + delta - shift, r0};

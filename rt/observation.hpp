@@ -48,6 +48,11 @@ struct ProfileSearch {
   /// side, instead of the latter (for lines where the background is curved, see
   /// TrackerOptions::start_mean_surround_px).
   bool ridge_mean_surround = false;
+  /// kDarkRidge (lines without ridge_mean_surround): the sub-pixel position of a candidate from the
+  /// profile's own darkness ([1 2 1]-smoothed, the vertex of a parabola through the three
+  /// samples around the response's peak) instead of from the ridge response, whose side samples
+  /// add their noise to the position (see TrackerOptions::ridge_position_from_profile).
+  bool ridge_position_from_profile = false;
 
   /// Profile samples needed beyond ±range_px: the central difference reads ±1 more around each
   /// response and the local-maximum test one response more (edges); lines read ±(surround + 1).

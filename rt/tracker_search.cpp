@@ -148,6 +148,7 @@ void Tracker::search(const ImageView& frame, int range_px) {
       ProfileSearch search = base;
       search.expected_sign = edge_sign(lines_[j]);
       search.ridge_mean_surround = lines_[j].mean_surround;
+      search.ridge_position_from_profile = options_.ridge_position_from_profile;
       lines_[j].num_candidates = find_candidates(profile, ci - lo, static_cast<float>(c - ci),
                                                  search, response, &candidates_[j * K]);
     }

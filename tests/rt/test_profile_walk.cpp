@@ -161,5 +161,70 @@ TEST(FindCandidates, MeanSurroundLeavesARidgeOnACurvedBackgroundInPlace) {
   EXPECT_LT(strongest, 1.0f) << "per cent of the backlight";
 }
 
+TEST(FindCandidates, ProfilePositionTakesTheSidesNoiseOutOfTheRidgesPosition) {
+  // A whisker's profile across it: a dark ridge (Gaussian, σ 1 px, 10 grey levels deep) at a
+  // sub-pixel offset u on a flat backlight of 150, with white noise of 2 grey levels per sample
+  // (σ 4 averaged along 5 px of whisker). The ridge response's peak carries the noise of its side
+  // samples 3 px out; the profile's own darkness does not. Both are unbiased; the profile's
+  // position has the smaller spread (measured 0.282 against 0.343 px rms) at the price of a little
+  // more pixel locking without noise (0.029 against 0.009 px at worst).
+  ProfileSearch search;
+  search.mode = ObservationMode::kDarkRidge;
+  search.range_px = 4;
+  search.line_surround_px = 3;
+  search.min_strength = 0.5f;
+  const int half = search.range_px + search.margin();
+  std::vector<float> profile(2 * half + 1), response(profile.size());
+  std::mt19937 rng(7);
+  auto gauss = [&]() {  // Box–Muller on the standard engine: the same numbers everywhere
+    const double a = (rng() + 1.0) / 4294967297.0, b = rng() / 4294967296.0;
+    return std::sqrt(-2.0 * std::log(a)) * std::cos(2.0 * M_PI * b);
+  };
+  auto position = [&](bool from_profile, double u) {
+    search.ridge_position_from_profile = from_profile;
+    Candidate out[3];
+    const int found = find_candidates(profile.data(), half, 0.0f, search, response.data(), out);
+    double best = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < found; ++c) {
+      if (std::abs(out[c].offset - u) < std::abs(best)) best = out[c].offset - u;
+    }
+    return best;
+  };
+  auto draw = [&](double u, double noise) {
+    for (int k = -half; k <= half; ++k) {
+      const double x = k - u;
+      profile[k + half] =
+          static_cast<float>(150.0 - 10.0 * std::exp(-0.5 * x * x) + noise * gauss());
+    }
+  };
+  double locked[2] = {0.0, 0.0};
+  for (int i = 0; i <= 20; ++i) {
+    const double u = -0.5 + 0.05 * i;
+    draw(u, 0.0);
+    for (int m = 0; m < 2; ++m) locked[m] = std::max(locked[m], std::abs(position(m == 1, u)));
+  }
+  double sum[2] = {0.0, 0.0}, squares[2] = {0.0, 0.0};
+  const int trials = 4000;
+  for (int t = 0; t < trials; ++t) {
+    const double u = (rng() / 4294967296.0) - 0.5;
+    draw(u, 2.0);
+    for (int m = 0; m < 2; ++m) {
+      const double e = position(m == 1, u);
+      ASSERT_TRUE(std::isfinite(e)) << "trial " << t;
+      sum[m] += e;
+      squares[m] += e * e;
+    }
+  }
+  const double rms_response = std::sqrt(squares[0] / trials),
+               rms_profile = std::sqrt(squares[1] / trials);
+  std::printf(
+      "pixel locking %.4f / %.4f px, rms %.4f / %.4f px, mean %.4f / %.4f px (response / "
+      "profile)\n",
+      locked[0], locked[1], rms_response, rms_profile, sum[0] / trials, sum[1] / trials);
+  EXPECT_LT(rms_profile, 0.9 * rms_response);
+  EXPECT_LT(std::abs(sum[1] / trials), 0.01);
+  EXPECT_LT(locked[1], 0.05);
+}
+
 }  // namespace
 }  // namespace sinew::rt

@@ -363,6 +363,7 @@ rt::WhiskerSessionOptions session_options_of(const WhiskerTrackArgs& args) {
   session_options.tracker.associate_home_px = args.associate_home_px;
   session_options.tracker.tracker.start_clearance_px = args.start_clearance_px;
   session_options.tracker.tracker.start_mean_surround_px = args.start_mean_surround_px;
+  session_options.tracker.tracker.ridge_position_from_profile = args.profile_position;
   session_options.readout = args.readout;
   session_options.rest_frame = args.rest_frame;
   session_options.rest_frames = args.rest_frames;

@@ -22,6 +22,8 @@ struct WhiskerTrackArgs {
   double start_clearance_px = 0.0;
   /// rt::TrackerOptions::start_mean_surround_px of every whisker (the follicle's sideways bias)
   double start_mean_surround_px = 0.0;
+  /// rt::TrackerOptions::ridge_position_from_profile of every whisker
+  bool profile_position = false;
   /// Detection after tracking, for rt::WhiskerTracker::associate: "every" frame (a 25–100 fps
   /// camera, whose whiskers move further between frames than the search reaches), only on frames
   /// with a "lost" whisker (a high-speed camera), or "never".
