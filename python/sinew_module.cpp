@@ -250,9 +250,15 @@ class PyWhiskers {
              double mm_per_px, double young_modulus_gpa, double base_radius_um,
              double tip_radius_um, double length_mm, double axis_angle_deg,
              std::pair<double, double> curvature_window, int moment_elements, int rest_frame,
-             int rest_frames, double associate_home_px, const std::string& whisker_preset) {
+             int rest_frames, double associate_home_px, const std::string& whisker_preset,
+             double start_clearance_px, double start_mean_surround_px, bool fit_follicle_position,
+             bool profile_position) {
     rt::WhiskerSessionOptions o;
     o.tracker.associate_home_px = associate_home_px;
+    o.tracker.tracker.start_clearance_px = start_clearance_px;
+    o.tracker.tracker.start_mean_surround_px = start_mean_surround_px;
+    o.tracker.tracker.ridge_position_from_profile = profile_position;
+    o.contact_fit.fit_base_translation = fit_follicle_position;
     o.detection.face = face_side(face);
     o.detection.min_length_px = min_length_px;
     o.redetect = redetect_mode(redetect);
@@ -470,20 +476,24 @@ identities, their mechanics and their contacts: sinew-track --whiskers, frame by
 
 Whiskers(face='auto', redetect='every', min_length_px=40, mm_per_px=0, young_modulus_gpa=3.34,
 base_radius_um=0, tip_radius_um=0, length_mm=0, axis_angle_deg=0, curvature_window=(0, 30),
-moment_elements=3, rest_frame=0, rest_frames=1, associate_home_px=0, whisker_preset=''): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
+moment_elements=3, rest_frame=0, rest_frames=1, associate_home_px=0, whisker_preset='',
+start_clearance_px=0, start_mean_surround_px=0, fit_follicle_position=False,
+profile_position=False): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
 the radii, curvature and moment are in pixel model units. whisker_preset='rat-c2' takes the modulus,
 radii and length from the literature (docs/tracker.md); keywords given other values override them.
 )doc")
       .def(py::init<const std::string&, const std::string&, double, double, double, double, double,
                     double, double, std::pair<double, double>, int, int, int, double,
-                    const std::string&>(),
+                    const std::string&, double, double, bool, bool>(),
            py::arg("face") = "auto", py::arg("redetect") = "every", py::arg("min_length_px") = 40.0,
            py::arg("mm_per_px") = 0.0, py::arg("young_modulus_gpa") = 3.34,
            py::arg("base_radius_um") = 0.0, py::arg("tip_radius_um") = 0.0,
            py::arg("length_mm") = 0.0, py::arg("axis_angle_deg") = 0.0,
            py::arg("curvature_window") = std::pair<double, double>(0.0, 30.0),
            py::arg("moment_elements") = 3, py::arg("rest_frame") = 0, py::arg("rest_frames") = 1,
-           py::arg("associate_home_px") = 0.0, py::arg("whisker_preset") = "")
+           py::arg("associate_home_px") = 0.0, py::arg("whisker_preset") = "",
+           py::arg("start_clearance_px") = 0.0, py::arg("start_mean_surround_px") = 0.0,
+           py::arg("fit_follicle_position") = false, py::arg("profile_position") = false)
       .def("track", &PyWhiskers::track, py::arg("frame"), R"doc(
 Processes one grey frame (2-D uint8 numpy array, read in place): detection on the first, then
 tracking, detection again and association (redetect), read-out and contact. Returns a dict with

@@ -92,6 +92,33 @@ def test_home_follicles_as_sinew_track(pad):
             np.testing.assert_allclose(g["nodes"], np.asarray(w["nodes"]), rtol=0, atol=1e-9)
 
 
+def test_force_recipe_as_sinew_track(pad):
+    """The tracker's opt-in options for forces (docs/tracker.md: the line's position from the
+    profile) reach it the same way from Python and from the command line, and change the result."""
+    _, expected_default, frames, out = pad
+    results = out / "recipe.jsonl"
+    subprocess.run([os.path.join(BIN, "sinew-track"), "--input", str(out / "frames/f_%04d.png"),
+                    "--whiskers", "--face", "left", "--profile-position", "--start-mean-surround-px",
+                    "6", "--start-clearance-px", "2", "--fit-follicle-position", "--out",
+                    str(results), "--quiet"], check=True, capture_output=True)
+    expected = [json.loads(line) for line in open(results)]
+    expected = [line for line in expected if "whiskers" in line]
+    whiskers = sinew.Whiskers(face="left", profile_position=True, start_mean_surround_px=6,
+                              start_clearance_px=2, fit_follicle_position=True)
+    differs = 0
+    for frame, want, default in zip(frames, expected, expected_default):
+        got = whiskers.track(frame)
+        assert [g["status"] for g in got["whiskers"]] == [w["status"] for w in want["whiskers"]]
+        for g, w, d in zip(got["whiskers"], want["whiskers"], default["whiskers"]):
+            np.testing.assert_allclose(g["nodes"], np.asarray(w["nodes"]), rtol=0, atol=1e-9)
+            for key in ("contact_moment_model", "contact_force_model"):
+                if key in w and w[key] is not None:
+                    assert g[key] == pytest.approx(w[key], rel=1e-9, abs=1e-12), key
+            differs += len(g["nodes"]) != len(d["nodes"]) or not np.allclose(
+                g["nodes"], np.asarray(d["nodes"]), rtol=0, atol=1e-6)
+    assert differs > 0
+
+
 def test_bad_options_raise():
     with pytest.raises(ValueError, match="associate_home_px"):
         sinew.Whiskers(associate_home_px=-1)
