@@ -271,11 +271,13 @@ class PyWhiskers {
       // The preset's values where a keyword was left at its default.
       const auto preset = rt::whisker_preset(whisker_preset);
       if (!preset) throw py::value_error("whisker_preset: unknown name '" + whisker_preset + "'");
+      const rt::WhiskerPhysics defaults;
       rt::WhiskerPhysics& p = o.readout.physics;
-      if (young_modulus_gpa == 3.34) p.young_modulus_gpa = preset->young_modulus_gpa;
-      if (base_radius_um == 0.0) p.base_radius_um = preset->base_radius_um;
-      if (tip_radius_um == 0.0) p.tip_radius_um = preset->tip_radius_um;
-      if (length_mm == 0.0) p.length_mm = preset->length_mm;
+      if (young_modulus_gpa == defaults.young_modulus_gpa)
+        p.young_modulus_gpa = preset->young_modulus_gpa;
+      if (base_radius_um == defaults.base_radius_um) p.base_radius_um = preset->base_radius_um;
+      if (tip_radius_um == defaults.tip_radius_um) p.tip_radius_um = preset->tip_radius_um;
+      if (length_mm == defaults.length_mm) p.length_mm = preset->length_mm;
     }
     o.readout.axis_angle_deg = axis_angle_deg;
     o.readout.curvature_from_px = curvature_window.first;

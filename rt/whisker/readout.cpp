@@ -22,20 +22,39 @@ double wrap_degrees(double a) {
 
 }  // namespace
 
+namespace {
+
+struct NamedWhisker {
+  const char* name;
+  double young_modulus_gpa, base_radius_um, tip_radius_um, length_mm;
+};
+
+// The sources of each value: readout.hpp, whisker_preset().
+constexpr NamedWhisker kPresets[] = {
+    {"rat-c2", 3.34, 69.5, 1.6, 33.6},
+};
+
+}  // namespace
+
 std::optional<WhiskerPhysics> whisker_preset(std::string_view name) {
-  if (name == "rat-c2") {
+  for (const NamedWhisker& w : kPresets) {
+    if (name != w.name) continue;
     WhiskerPhysics p;
-    p.young_modulus_gpa = 3.34;  // Quist, Faruqi and Hartmann 2011
-    p.base_radius_um = 69.5;     // Belli et al. 2017, mean of the C2 whiskers
-    p.tip_radius_um = 1.6;       // the same table, C2 whiskers with a measured tip
-    p.length_mm = 33.6;          // the same table
+    p.young_modulus_gpa = w.young_modulus_gpa;
+    p.base_radius_um = w.base_radius_um;
+    p.tip_radius_um = w.tip_radius_um;
+    p.length_mm = w.length_mm;
     return p;
   }
   return std::nullopt;
 }
 
 const std::vector<std::string>& whisker_preset_names() {
-  static const std::vector<std::string> names = {"rat-c2"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const NamedWhisker& w : kPresets) n.emplace_back(w.name);
+    return n;
+  }();
   return names;
 }
 

@@ -123,19 +123,36 @@ TEST(FindCandidates, RidgeResponseIsTheScalarFormulaAtEveryOffset) {
   }
 }
 
+// A dark-ridge search over ±range_px (sides 3 px out) with its profile and response buffers,
+// indexed from -half.
+struct RidgeSearch {
+  ProfileSearch search;
+  int half = 0;
+  std::vector<float> profile, response;
+};
+
+RidgeSearch ridge_search(int range_px) {
+  RidgeSearch r;
+  r.search.mode = ObservationMode::kDarkRidge;
+  r.search.range_px = range_px;
+  r.search.line_surround_px = 3;
+  r.search.min_strength = 0.5f;
+  r.half = r.search.range_px + r.search.margin();
+  r.profile.assign(2 * r.half + 1, 0.0f);
+  r.response.assign(r.profile.size(), 0.0f);
+  return r;
+}
+
 TEST(FindCandidates, MeanSurroundLeavesARidgeOnACurvedBackgroundInPlace) {
   // A whisker next to the face: a dark ridge (Gaussian, σ 1 px, 10 grey levels deep, centred at
   // 0) on a background that falls and curves towards one side, as the face's soft
   // edge does along a line beside a follicle. The darker side's depth moves its peak sideways;
   // the mean of both sides (bounded by 4x the darker side's depth) leaves it in place, and an edge
   // still answers little.
-  ProfileSearch search;
-  search.mode = ObservationMode::kDarkRidge;
-  search.range_px = 6;
-  search.line_surround_px = 3;
-  search.min_strength = 0.5f;
-  const int half = search.range_px + search.margin();
-  std::vector<float> profile(2 * half + 1), response(profile.size());
+  RidgeSearch r = ridge_search(6);
+  ProfileSearch& search = r.search;
+  const int half = r.half;
+  std::vector<float>&profile = r.profile, &response = r.response;
   auto peak = [&](bool mean_surround) {
     search.ridge_mean_surround = mean_surround;
     Candidate out[3];
@@ -168,13 +185,10 @@ TEST(FindCandidates, ProfilePositionTakesTheSidesNoiseOutOfTheRidgesPosition) {
   // samples 3 px out; the profile's own darkness does not. Both are unbiased; the profile's
   // position has the smaller spread (measured 0.282 against 0.343 px rms) at the price of a little
   // more pixel locking without noise (0.029 against 0.009 px at worst).
-  ProfileSearch search;
-  search.mode = ObservationMode::kDarkRidge;
-  search.range_px = 4;
-  search.line_surround_px = 3;
-  search.min_strength = 0.5f;
-  const int half = search.range_px + search.margin();
-  std::vector<float> profile(2 * half + 1), response(profile.size());
+  RidgeSearch r = ridge_search(4);
+  ProfileSearch& search = r.search;
+  const int half = r.half;
+  std::vector<float>&profile = r.profile, &response = r.response;
   std::mt19937 rng(7);
   auto gauss = [&]() {  // Box–Muller on the standard engine: the same numbers everywhere
     const double a = (rng() + 1.0) / 4294967297.0, b = rng() / 4294967296.0;
