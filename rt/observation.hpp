@@ -32,6 +32,15 @@ struct Candidate {
   float strength = 0.0f;
 };
 
+/// Image points where a search may not take a candidate: a caller's veto (e.g. the ridges other
+/// whiskers hold this frame, so that a whisker whose fit slid onto a neighbour's ridge can be
+/// fitted again on its own). Called from the per-frame path: must not allocate.
+class CandidateExclusion {
+ public:
+  virtual ~CandidateExclusion() = default;
+  virtual bool excluded(const Eigen::Vector2d& point) const noexcept = 0;
+};
+
 struct ProfileSearch {
   ObservationMode mode = ObservationMode::kEdge;
   /// kEdge: +1 when intensity must increase along the search direction, −1 decrease, 0 either.

@@ -236,6 +236,15 @@ class Tracker {
   /// frame. No effect when the last frame was already lost. No allocation.
   void reject_last_frame() noexcept;
 
+  /// Candidates at points `exclusion` vetoes are dropped from every later search along the
+  /// normals (not the end searches along the tangent, nor kEdgeMap's) until it is set again;
+  /// nullptr (the default) drops none. The object must outlive its use. No allocation.
+  void set_exclusion(const CandidateExclusion* exclusion) noexcept { exclusion_ = exclusion; }
+
+  /// The running median response of the object's inlier observations (the search's units, see
+  /// Candidate::strength): how strongly the image shows the object.
+  double typical_strength() const { return typical_strength_; }
+
   /// State u = [ux, uy, θ] per node relative to the reference (first-frame) polyline.
   const Eigen::VectorXd& state() const { return u_; }
   /// Current node position (pixels).
@@ -324,7 +333,8 @@ class Tracker {
   double damping_translation_ = 0.0, damping_rotation_ = 0.0;
   int frames_ = 0;
   bool strongest_candidate_ = false;  // associate with the strongest candidate (first repetition)
-  EdgePolarity polarity_ = EdgePolarity::kAny;  // resolved polarity (kAuto decided on frame 0)
+  EdgePolarity polarity_ = EdgePolarity::kAny;     // resolved polarity (kAuto decided on frame 0)
+  const CandidateExclusion* exclusion_ = nullptr;  // see set_exclusion()
 
   // Per-frame workspace, sized at construction.
   std::vector<SearchLine> lines_;

@@ -149,8 +149,20 @@ void Tracker::search(const ImageView& frame, int range_px) {
       search.expected_sign = edge_sign(lines_[j]);
       search.ridge_mean_surround = lines_[j].mean_surround;
       search.ridge_position_from_profile = options_.ridge_position_from_profile;
-      lines_[j].num_candidates = find_candidates(profile, ci - lo, static_cast<float>(c - ci),
-                                                 search, response, &candidates_[j * K]);
+      Candidate* found = &candidates_[j * K];
+      int count =
+          find_candidates(profile, ci - lo, static_cast<float>(c - ci), search, response, found);
+      if (exclusion_ != nullptr) {
+        // Vetoed candidates leave; the rest keep their order (strongest first).
+        int kept = 0;
+        for (int k = 0; k < count; ++k) {
+          if (!exclusion_->excluded(lines_[j].centre + found[k].offset * lines_[j].normal)) {
+            found[kept++] = found[k];
+          }
+        }
+        count = kept;
+      }
+      lines_[j].num_candidates = count;
     }
     l = last + 1;
   }

@@ -166,6 +166,9 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
   if (!(claim_fraction > 0.0 && claim_fraction <= 1.0)) {
     return field_error("claim_fraction", claim_fraction, "must be in (0, 1]");
   }
+  if (!(held_ridge_px >= 0.0)) {
+    return field_error("held_ridge_px", held_ridge_px, "must be >= 0");
+  }
   if (!(follicle_order_px >= 0.0)) {
     return field_error("follicle_order_px", follicle_order_px, "must be >= 0");
   }
@@ -212,6 +215,9 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
   previous_.resize(trackers_.size());
   for (std::size_t w = 0; w < trackers_.size(); ++w) previous_[w] = trackers_[w].state();
   boxes_.resize(trackers_.size());
+  order_.resize(trackers_.size());
+  for (std::size_t w = 0; w < trackers_.size(); ++w) order_[w] = static_cast<int>(w);
+  fitted_.assign(trackers_.size(), 0);
   anchor_follicle_.resize(trackers_.size());
   anchor_direction_.resize(trackers_.size());
   home_follicle_.resize(trackers_.size());
@@ -263,6 +269,61 @@ double WhiskerTracker::fraction_near(const Eigen::Matrix2Xd& points, int b) cons
     near += best <= limit_sq;
   }
   return points.cols() > 0 ? static_cast<double>(near) / points.cols() : 0.0;
+}
+
+void WhiskerTracker::update_box(int w) noexcept {
+  const Tracker& t = trackers_[w];
+  Eigen::AlignedBox2d box;
+  box.setEmpty();
+  for (int i = 0; i < t.num_nodes(); ++i) box.extend(t.node_position(i));
+  const Eigen::Vector2d pad = Eigen::Vector2d::Constant(0.5 * options_.claim_px);
+  boxes_[w] = Eigen::AlignedBox2d(box.min() - pad, box.max() + pad);
+}
+
+double WhiskerTracker::moved_since_previous(int w) const noexcept {
+  double moved = 0.0;
+  const Eigen::VectorXd& u = trackers_[w].state();
+  for (int i = 0; i < trackers_[w].num_nodes(); ++i) {
+    moved = std::max(moved, (u.segment<2>(3 * i) - previous_[w].segment<2>(3 * i)).norm());
+  }
+  return moved;
+}
+
+bool WhiskerTracker::held_by_other(const Eigen::Vector2d& p, int except) const noexcept {
+  const double r = options_.held_ridge_px;
+  const Eigen::Vector2d widen = Eigen::Vector2d::Constant(r);
+  for (int b = 0; b < num_whiskers(); ++b) {
+    if (b == except || !fitted_[b] || results_[b].status == FrameStatus::kLost) continue;
+    const Eigen::AlignedBox2d reach(boxes_[b].min() - widen, boxes_[b].max() + widen);
+    if (!reach.contains(p)) continue;
+    const Tracker& tb = trackers_[b];
+    for (int j = 0; j + 1 < tb.num_nodes(); ++j) {
+      if (segment_distance_sq(p, tb.node_position(j), tb.node_position(j + 1)) <= r * r) {
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+void WhiskerTracker::refit_beside_neighbours(const ImageView& frame, int w) noexcept {
+  // Every other whisker is fitted by now: the refit leaves out all their ridges.
+  const Eigen::AlignedBox2d box = boxes_[w];
+  const WhiskerFrame before = results_[w];
+  track_one(frame, w);
+  WhiskerFrame& r = results_[w];
+  bool keep = r.status != FrameStatus::kLost;
+  for (int b = 0; b < num_whiskers() && keep; ++b) {
+    if (b == w || results_[b].status == FrameStatus::kLost) continue;
+    keep = !boxes_[w].intersects(boxes_[b]) || (!mostly_near(w, b) && !mostly_near(b, w));
+  }
+  if (!keep) {
+    if (r.status != FrameStatus::kLost) trackers_[w].reject_last_frame();
+    r = before;
+    boxes_[w] = box;
+    return;
+  }
+  r.refitted = true;
 }
 
 bool WhiskerTracker::any_lost() const {
@@ -620,37 +681,56 @@ void WhiskerTracker::update_geometry() noexcept {
   }
 }
 
+void WhiskerTracker::track_one(const ImageView& frame, int w) noexcept {
+  // Held ridges: those of the whiskers fitted before w on this frame.
+  class HeldRidges final : public CandidateExclusion {
+   public:
+    HeldRidges(const WhiskerTracker& owner, int w) : owner_(owner), w_(w) {}
+    bool excluded(const Eigen::Vector2d& p) const noexcept override {
+      return owner_.held_by_other(p, w_);
+    }
+
+   private:
+    const WhiskerTracker& owner_;
+    int w_;
+  };
+  const HeldRidges held(*this, w);
+  Tracker& t = trackers_[w];
+  if (options_.held_ridge_px > 0.0) t.set_exclusion(&held);
+  WhiskerFrame& r = results_[w];
+  r.summary = t.track(frame);
+  t.set_exclusion(nullptr);
+  r.status = r.summary.status;
+  r.on_neighbour = false;
+  r.out_of_order = false;
+  r.reacquired = false;
+  r.refitted = false;
+  moved_px_[w] = moved_since_previous(w);
+  const double allowed = options_.max_jump_px * (lost_run_[w] > 0 ? 2.0 : 1.0);
+  r.jumped = r.status != FrameStatus::kLost && moved_px_[w] > allowed;
+  if (r.jumped) {
+    t.reject_last_frame();
+    r.status = FrameStatus::kLost;
+  }
+  update_box(w);
+  fitted_[w] = 1;
+}
+
 double WhiskerTracker::track(const ImageView& frame) noexcept {
   const auto t0 = std::chrono::steady_clock::now();
   const int n = num_whiskers();
   for (int w = 0; w < n; ++w) {
     previous_[w] = trackers_[w].state();  // same size: no allocation
-    WhiskerFrame& r = results_[w];
-    r.summary = trackers_[w].track(frame);
-    r.status = r.summary.status;
-    r.on_neighbour = false;
-    r.out_of_order = false;
-    r.reacquired = false;
-    double moved = 0.0;
-    const Eigen::VectorXd& u = trackers_[w].state();
-    for (int i = 0; i < trackers_[w].num_nodes(); ++i) {
-      moved = std::max(moved, (u.segment<2>(3 * i) - previous_[w].segment<2>(3 * i)).norm());
-    }
-    moved_px_[w] = moved;
-    const double allowed = options_.max_jump_px * (lost_run_[w] > 0 ? 2.0 : 1.0);
-    r.jumped = r.status != FrameStatus::kLost && moved > allowed;
-    if (r.jumped) {
-      trackers_[w].reject_last_frame();
-      r.status = FrameStatus::kLost;
-    }
+    fitted_[w] = 0;
   }
-  for (int w = 0; w < n; ++w) {
-    const Tracker& t = trackers_[w];
-    boxes_[w].setEmpty();
-    for (int i = 0; i < t.num_nodes(); ++i) boxes_[w].extend(t.node_position(i));
-    const Eigen::Vector2d pad = Eigen::Vector2d::Constant(0.5 * options_.claim_px);
-    boxes_[w] = Eigen::AlignedBox2d(boxes_[w].min() - pad, boxes_[w].max() + pad);
+  if (options_.held_ridge_px > 0.0) {
+    // Brightest first (std::stable_sort would allocate; the index breaks ties).
+    std::sort(order_.begin(), order_.end(), [&](int a, int b) {
+      const double sa = trackers_[a].typical_strength(), sb = trackers_[b].typical_strength();
+      return sa > sb || (sa == sb && a < b);
+    });
   }
+  for (int w : order_) track_one(frame, w);
   // One ridge, one whisker: of two fits that run along each other, the one that moved more has
   // jumped onto its neighbour.
   for (int a = 0; a < n; ++a) {
@@ -665,7 +745,13 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
       trackers_[loser].reject_last_frame();
       results_[loser].status = FrameStatus::kLost;
       results_[loser].on_neighbour = true;
+      update_box(loser);
       if (loser == a) break;
+    }
+  }
+  if (options_.held_ridge_px > 0.0) {
+    for (int w = 0; w < n; ++w) {
+      if (results_[w].on_neighbour) refit_beside_neighbours(frame, w);
     }
   }
   if (options_.follicle_order_px > 0.0) keep_follicle_order();

@@ -12,7 +12,11 @@
 /// A ridge is one whisker's: when a fit ends running along a neighbour's curve (within
 /// claim_px over more than claim_fraction of its nodes), the whisker that moved more this frame
 /// has jumped: its fit is discarded (Tracker::reject_last_frame) and it is reported lost for the
-/// frame, so identities do not swap where whiskers cross or run side by side.
+/// frame, so identities do not swap where whiskers cross or run side by side. Before it comes to
+/// that, whiskers are fitted brightest first, and each fit's search leaves out the ridges the
+/// whiskers fitted before it hold this frame (held_ridge_px): a faint whisker a few pixels beside
+/// a bright one would otherwise take the brighter ridge, the strongest in its search's reach. A
+/// fit discarded as on its neighbour is fitted again the same way, beside all the others.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -73,6 +77,13 @@ struct WhiskerTrackerOptions {
   /// See the header comment.
   double claim_px = 1.5;
   double claim_fraction = 0.5;
+  /// A whisker's search drops the candidates within this distance of the node polylines of the
+  /// whiskers fitted (and kept) before it on the frame, brighter ones (Tracker::typical_strength)
+  /// first. A fit discarded for running along a neighbour is fitted again from its last good state
+  /// with the candidates near every other kept fit dropped; the refit is kept when it is not
+  /// lost, moved no more than max_jump_px allows and runs along no other whisker. Pixels (0: all
+  /// candidates, in whisker order, and no refit).
+  double held_ridge_px = 2.0;
   /// Follicles keep their order along the whisker pad (the principal axis of the follicles a
   /// detection last confirmed, its anchors): a fit whose follicle lies past a neighbour's by more
   /// than this, where their anchors lie in the other order by more than this, slid onto another
@@ -92,6 +103,7 @@ struct WhiskerFrame {
   bool jumped = false;        ///< the fit moved more than max_jump_px and was discarded
   bool out_of_order = false;  ///< its follicle passed a neighbour's along the pad; discarded
   bool reacquired = false;    ///< restarted on its detection by associate() on this frame
+  bool refitted = false;      ///< its fit ran onto a neighbour; fitted again beside it and kept
   Eigen::Vector2d follicle = Eigen::Vector2d::Zero();  ///< first node
   Eigen::Vector2d tip = Eigen::Vector2d::Zero();       ///< last node
   double length_px = 0.0;                              ///< along the fitted nodes
@@ -173,6 +185,17 @@ class WhiskerTracker {
   void keep_follicle_order() noexcept;
   // Fraction of the points within claim_px of whisker b's node polyline.
   double fraction_near(const Eigen::Matrix2Xd& points, int b) const;
+  // boxes_[w] from whisker w's nodes now.
+  void update_box(int w) noexcept;
+  // The largest node displacement of whisker w since previous_[w].
+  double moved_since_previous(int w) const noexcept;
+  // Tracks whisker w on the frame (the jump test included; sets boxes_[w] and fitted_[w]).
+  void track_one(const ImageView& frame, int w) noexcept;
+  // See WhiskerTrackerOptions::held_ridge_px (w's last fit was discarded).
+  void refit_beside_neighbours(const ImageView& frame, int w) noexcept;
+  // Whether p lies within held_ridge_px of the node polyline of a whisker other than `except`
+  // fitted and kept on this frame.
+  bool held_by_other(const Eigen::Vector2d& p, int except) const noexcept;
 
   WhiskerTrackerOptions options_;
   std::string error_;
@@ -182,6 +205,8 @@ class WhiskerTracker {
   std::vector<int> lost_run_;     // frames in a row each whisker has been lost
   std::vector<Eigen::VectorXd> previous_;
   std::vector<Eigen::AlignedBox2d> boxes_;  // each fit's node bounding box, claim_px/2 wider
+  std::vector<int> order_;                  // whiskers in the order they are fitted
+  std::vector<char> fitted_;                // fitted on this frame yet
   // Where a detection last confirmed each whisker: follicle and first direction.
   std::vector<Eigen::Vector2d> anchor_follicle_, anchor_direction_;
   // Each whisker's follicle on the first frame (associate_home_px).
