@@ -433,6 +433,7 @@ int main(int argc, char** argv) {
   double min_length = 40.0;
   bool repair_traces = false;
   double associate_home_px = 0.0;
+  double held_ridge_px = sinew::rt::WhiskerTrackerOptions{}.held_ridge_px;
   double start_clearance_px = 0.0;
   double start_mean_surround_px = 0.0;
   bool profile_position = false;
@@ -456,6 +457,12 @@ int main(int argc, char** argv) {
                  "costs by its distance from the whisker's first follicle (moved with the head); "
                  "15 holds the shared video's identities but tracks fewer whisker-frames on a "
                  "ridge (docs/tracker.md); 0 (default) off")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--held-ridge-px", held_ridge_px,
+                 "--whiskers: whiskers are fitted brightest first and each one's search leaves out "
+                 "the candidates this near the whiskers fitted before it (a faint whisker beside a "
+                 "bright one keeps its own ridge); 0 off")
+      ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   app.add_option("--start-clearance-px", start_clearance_px,
                  "--whiskers: no search line across a whisker within this distance of its "
@@ -573,6 +580,7 @@ int main(int argc, char** argv) {
       w.min_length_px = min_length;
       w.repair_traces = repair_traces;
       w.associate_home_px = associate_home_px;
+      w.held_ridge_px = held_ridge_px;
       w.start_clearance_px = start_clearance_px;
       w.start_mean_surround_px = start_mean_surround_px;
       w.profile_position = profile_position;

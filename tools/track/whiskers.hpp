@@ -8,6 +8,7 @@
 #include <string>
 
 #include "rt/whisker/readout.hpp"
+#include "rt/whisker/whisker_tracker.hpp"
 
 namespace sinew::tools {
 
@@ -18,6 +19,7 @@ struct WhiskerTrackArgs {
   double min_length_px = 40.0;
   bool repair_traces = false;      ///< rt::WhiskerDetectionOptions::repair_traces
   double associate_home_px = 0.0;  ///< rt::WhiskerTrackerOptions::associate_home_px
+  double held_ridge_px = rt::WhiskerTrackerOptions{}.held_ridge_px;  ///< ... ::held_ridge_px
   /// rt::TrackerOptions::start_clearance_px of every whisker (the follicle angle's bias)
   double start_clearance_px = 0.0;
   /// rt::TrackerOptions::start_mean_surround_px of every whisker (the follicle's sideways bias)
