@@ -19,6 +19,14 @@ residuals do not vouch for themselves. For every whisker-frame reported "ok" or 
   smoothed with a Gaussian of 4 px below 0.35 of its 95th percentile) that does not touch the
   face's border.
 
+Beside it, the same figures with each side taken as the brightest sample 2-5 px out instead of the
+mean of 4 and 5: where whiskers run 3-5 px apart (a dense pad near the face) the samples 4-5 px
+out fall on the neighbour and the first measure cannot see the whisker at all (shared video, frame
+0: the peer's traces of the two whiskers of that kind pass on 49 and 62 % of their length). With
+--peer, another tracker's traces (JSON Lines {"frame", "whiskers": [{"x": [...], "y": [...]}]},
+e.g. ../shared/reference/whisk_peer/) that leave the face (an end within 15 px of it, at least 40
+px long) are scored by both measures, for a comparison on the same frames.
+
 Prints one summary line per figure and exits 1 when the on-ridge fraction is below --require or
 any whisker-frame lies on a pole (so a test can call it).
 """
@@ -55,6 +63,33 @@ def ridge_depth(g, p, n):
     return np.minimum(left, right) - centre
 
 
+def ridge_depth_near(g, p, n):
+    """As ridge_depth, each side the brightest sample 2-5 px out (the gap before a neighbour)."""
+    centre = np.min([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1])
+                     for k in (-1.0, -0.5, 0.0, 0.5, 1.0)], axis=0)
+    out = np.arange(2.0, 5.01, 0.5)
+    left = np.max([sample(g, p[:, 0] - k * n[:, 0], p[:, 1] - k * n[:, 1]) for k in out], axis=0)
+    right = np.max([sample(g, p[:, 0] + k * n[:, 0], p[:, 1] + k * n[:, 1]) for k in out], axis=0)
+    return np.minimum(left, right) - centre
+
+
+def ridge_fractions(g, p, n, min_depth):
+    """The fraction of the samples on a ridge by each measure (far sides, brightest near side)."""
+    return (float(np.mean(ridge_depth(g, p, n) >= min_depth)),
+            float(np.mean(ridge_depth_near(g, p, n) >= min_depth)))
+
+
+def read_peer(path):
+    """Another tracker's traces per frame, each an (N, 2) array."""
+    peer = {}
+    with open(path) as f:
+        for line in f:
+            rec = json.loads(line)
+            peer[rec["frame"]] = [np.stack([np.asarray(w["x"], float), np.asarray(w["y"], float)],
+                                           axis=1) for w in rec["whiskers"] if len(w["x"]) >= 2]
+    return peer
+
+
 def curve_samples(nodes, skip_px=3.0):
     """Points every pixel along the polyline through nodes, and unit normals."""
     pts = np.asarray(nodes, dtype=float)[:, :2]
@@ -81,6 +116,8 @@ def main():
     ap.add_argument("--jump-px", type=float, default=8.0,
                     help="a follicle moving more than this between frames is counted as a jump")
     ap.add_argument("--per-frame", help="write frame,id,status,ridge_fraction,on_ridge to this CSV")
+    ap.add_argument("--peer", help="another tracker's traces on the same video (JSON Lines), "
+                                   "scored beside (see the module's description)")
     ap.add_argument("--require", type=float, default=0.0,
                     help="exit 1 when the on-ridge fraction of tracked whisker-frames is below this")
     ap.add_argument("--require-all", type=float, default=0.0,
@@ -104,9 +141,12 @@ def main():
     cap = cv2.VideoCapture(args.video)
     if not cap.isOpened():
         sys.exit(f"{args.video}: cannot open")
+    peer = read_peer(args.peer) if args.peer else {}
+    peer_count = [0, 0, 0]  # traces leaving the face; on a ridge by each measure
     index = -1
     checked = on_ridge = on_pole = 0
-    controls = control_pass = 0
+    on_ridge_near = 0
+    controls = control_pass = control_pass_near = 0
     per_whisker = {}
     rows = []
     while True:
@@ -114,7 +154,7 @@ def main():
         if not ok:
             break
         index += 1
-        if index not in frames:
+        if index not in frames and index not in peer:
             continue
         grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
         g = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 1.0)
@@ -125,17 +165,39 @@ def main():
                   "bottom": labels[-1, :]}.get(face, labels[:, 0])
         face_labels = set(np.unique(border).tolist()) - {0}
         other_dark = dark.astype(bool) & ~np.isin(labels, list(face_labels))
-        for w in frames[index]:
+        if index in peer:
+            face_mask = np.isin(labels, list(face_labels)).astype(np.uint8)
+            to_face = cv2.distanceTransform(1 - face_mask, cv2.DIST_L2, 3)
+            for pts in peer[index]:
+                if np.sum(np.hypot(*np.diff(pts, axis=0).T)) < 40.0:
+                    continue
+                ends = np.clip(np.round(pts[[0, -1]]).astype(int), 0,
+                               [grey.shape[1] - 1, grey.shape[0] - 1])
+                near = to_face[ends[:, 1], ends[:, 0]]
+                if near.min() > 15.0:
+                    continue
+                if near[1] < near[0]:
+                    pts = pts[::-1]  # follicle first, as the tracker's curves
+                p, n = curve_samples(pts)
+                if len(p) == 0:
+                    continue
+                f1, f2 = ridge_fractions(g, p, n, args.min_depth)
+                peer_count[0] += 1
+                peer_count[1] += f1 >= args.min_fraction
+                peer_count[2] += f2 >= args.min_fraction
+        for w in frames.get(index, []):
             if w["status"] == "lost":
                 continue
             p, n = curve_samples(w["nodes"])
             if len(p) == 0:
                 continue
-            fraction = float(np.mean(ridge_depth(g, p, n) >= args.min_depth))
+            fraction, fraction_near = ridge_fractions(g, p, n, args.min_depth)
+            on_ridge_near += fraction_near >= args.min_fraction
             for shift in (-7.0, 7.0):
-                control = float(np.mean(ridge_depth(g, p + shift * n, n) >= args.min_depth))
+                control, control_near = ridge_fractions(g, p + shift * n, n, args.min_depth)
                 controls += 1
                 control_pass += control >= args.min_fraction
+                control_pass_near += control_near >= args.min_fraction
             xi = np.clip(np.round(p[:, 0]).astype(int), 0, grey.shape[1] - 1)
             yi = np.clip(np.round(p[:, 1]).astype(int), 0, grey.shape[0] - 1)
             pole = float(np.mean(other_dark[yi, xi])) > 1.0 / 3.0
@@ -158,6 +220,14 @@ def main():
           f"{100 * on_ridge / max(total, 1):.1f}% of all")
     print(f"control, the same curves moved 7 px sideways: {control_pass} of {controls} pass "
           f"({100 * control_pass / max(controls, 1):.1f}%, the measure's false-positive rate)")
+    print(f"each side the brightest sample 2-5 px out (sees whiskers 3-5 px from a neighbour): "
+          f"{on_ridge_near} = {100 * on_ridge_near / max(checked, 1):.1f}% of tracked, "
+          f"{100 * on_ridge_near / max(total, 1):.1f}% of all; control "
+          f"{100 * control_pass_near / max(controls, 1):.1f}%")
+    if args.peer:
+        print(f"peer traces leaving the face (>= 40 px): {peer_count[0]}, on a dark ridge "
+              f"{100 * peer_count[1] / max(peer_count[0], 1):.1f}%, brightest sides "
+              f"{100 * peer_count[2] / max(peer_count[0], 1):.1f}%")
     print(f"on a pole or other thick dark object: {on_pole}")
     print("per whisker (id: tracked, on ridge): " +
           ", ".join(f"{k}: {v[0]}, {v[1]}" for k, v in sorted(per_whisker.items())))
