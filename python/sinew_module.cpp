@@ -323,7 +323,6 @@ class PyWhiskers {
       d["jumped"] = r.jumped;
       d["out_of_order"] = r.out_of_order;
       d["reacquired"] = r.reacquired;
-      d["refitted"] = r.refitted;
       d["inlier_fraction"] = r.summary.inlier_fraction;
       const rt::WhiskerSessionWhisker& sw = session_->whisker(w);
       if (sw.readout) {

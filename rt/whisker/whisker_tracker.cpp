@@ -306,26 +306,6 @@ bool WhiskerTracker::held_by_other(const Eigen::Vector2d& p, int except) const n
   return false;
 }
 
-void WhiskerTracker::refit_beside_neighbours(const ImageView& frame, int w) noexcept {
-  // Every other whisker is fitted by now: the refit leaves out all their ridges.
-  const Eigen::AlignedBox2d box = boxes_[w];
-  const WhiskerFrame before = results_[w];
-  track_one(frame, w);
-  WhiskerFrame& r = results_[w];
-  bool keep = r.status != FrameStatus::kLost;
-  for (int b = 0; b < num_whiskers() && keep; ++b) {
-    if (b == w || results_[b].status == FrameStatus::kLost) continue;
-    keep = !boxes_[w].intersects(boxes_[b]) || (!mostly_near(w, b) && !mostly_near(b, w));
-  }
-  if (!keep) {
-    if (r.status != FrameStatus::kLost) trackers_[w].reject_last_frame();
-    r = before;
-    boxes_[w] = box;
-    return;
-  }
-  r.refitted = true;
-}
-
 bool WhiskerTracker::any_lost() const {
   for (const WhiskerFrame& r : results_) {
     if (r.status == FrameStatus::kLost) return true;
@@ -704,7 +684,6 @@ void WhiskerTracker::track_one(const ImageView& frame, int w) noexcept {
   r.on_neighbour = false;
   r.out_of_order = false;
   r.reacquired = false;
-  r.refitted = false;
   moved_px_[w] = moved_since_previous(w);
   const double allowed = options_.max_jump_px * (lost_run_[w] > 0 ? 2.0 : 1.0);
   r.jumped = r.status != FrameStatus::kLost && moved_px_[w] > allowed;
@@ -747,11 +726,6 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
       results_[loser].on_neighbour = true;
       update_box(loser);
       if (loser == a) break;
-    }
-  }
-  if (options_.held_ridge_px > 0.0) {
-    for (int w = 0; w < n; ++w) {
-      if (results_[w].on_neighbour) refit_beside_neighbours(frame, w);
     }
   }
   if (options_.follicle_order_px > 0.0) keep_follicle_order();

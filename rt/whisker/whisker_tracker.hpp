@@ -15,8 +15,7 @@
 /// frame, so identities do not swap where whiskers cross or run side by side. Before it comes to
 /// that, whiskers are fitted brightest first, and each fit's search leaves out the ridges the
 /// whiskers fitted before it hold this frame (held_ridge_px): a faint whisker a few pixels beside
-/// a bright one would otherwise take the brighter ridge, the strongest in its search's reach. A
-/// fit discarded as on its neighbour is fitted again the same way, beside all the others.
+/// a bright one would otherwise take the brighter ridge, the strongest in its search's reach.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -79,10 +78,9 @@ struct WhiskerTrackerOptions {
   double claim_fraction = 0.5;
   /// A whisker's search drops the candidates within this distance of the node polylines of the
   /// whiskers fitted (and kept) before it on the frame, brighter ones (Tracker::typical_strength)
-  /// first. A fit discarded for running along a neighbour is fitted again from its last good state
-  /// with the candidates near every other kept fit dropped; the refit is kept when it is not
-  /// lost, moved no more than max_jump_px allows and runs along no other whisker. Pixels (0: all
-  /// candidates, in whisker order, and no refit).
+  /// first. Pixels (0: all candidates, in whisker order). (Also refitting a fit discarded as on
+  /// its neighbour beside all the others was tried: on the shared video it was kept once in
+  /// 1,800 whisker-frames.)
   double held_ridge_px = 2.0;
   /// Follicles keep their order along the whisker pad (the principal axis of the follicles a
   /// detection last confirmed, its anchors): a fit whose follicle lies past a neighbour's by more
@@ -103,7 +101,6 @@ struct WhiskerFrame {
   bool jumped = false;        ///< the fit moved more than max_jump_px and was discarded
   bool out_of_order = false;  ///< its follicle passed a neighbour's along the pad; discarded
   bool reacquired = false;    ///< restarted on its detection by associate() on this frame
-  bool refitted = false;      ///< its fit ran onto a neighbour; fitted again beside it and kept
   Eigen::Vector2d follicle = Eigen::Vector2d::Zero();  ///< first node
   Eigen::Vector2d tip = Eigen::Vector2d::Zero();       ///< last node
   double length_px = 0.0;                              ///< along the fitted nodes
@@ -191,8 +188,6 @@ class WhiskerTracker {
   double moved_since_previous(int w) const noexcept;
   // Tracks whisker w on the frame (the jump test included; sets boxes_[w] and fitted_[w]).
   void track_one(const ImageView& frame, int w) noexcept;
-  // See WhiskerTrackerOptions::held_ridge_px (w's last fit was discarded).
-  void refit_beside_neighbours(const ImageView& frame, int w) noexcept;
   // Whether p lies within held_ridge_px of the node polyline of a whisker other than `except`
   // fitted and kept on this frame.
   bool held_by_other(const Eigen::Vector2d& p, int except) const noexcept;

@@ -85,8 +85,8 @@ case "$case" in
     # (before the follicle's 6-grey-level step: 95.4 % and 90.9 %). Follicle jumps of more than
     # 8 px between tracked frames: 38 (the mirror images 32-38; AVX2 off 36); 41 (38-43) before the
     # orientation by the pad, 57 (51-73) before fits whose follicle passed a neighbour's were
-    # discarded (follicle_order_px). With held ridges (2026-12-06): 98.4 / 95.9 %, jumps 38 (AVX2
-    # off 98.4 / 95.9 %, 34; the mirror images 95.5-95.9 %, 34-41).
+    # discarded (follicle_order_px). With held ridges (2026-12-06): 98.4 / 95.9 %, jumps 37 (AVX2
+    # off 98.4 / 95.9 %, 34; the mirror images 95.5-95.9 %, 34-42).
     "$py" "$src/scripts/whisker_check.py" --video "$video" --results "$work/results.jsonl" \
       --require 0.95 --require-all 0.93 --max-jumps 52
     ;;

@@ -220,7 +220,6 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
                            {"jumped", r.jumped},
                            {"out_of_order", r.out_of_order},
                            {"reacquired", r.reacquired},
-                           {"refitted", r.refitted},
                            {"inlier_fraction", r.summary.inlier_fraction}};
   // The read-out of a lost whisker's last state would be stale: none.
   ts.frame.push_back(index);
