@@ -724,7 +724,6 @@ double WhiskerTracker::track(const ImageView& frame) noexcept {
       trackers_[loser].reject_last_frame();
       results_[loser].status = FrameStatus::kLost;
       results_[loser].on_neighbour = true;
-      update_box(loser);
       if (loser == a) break;
     }
   }
