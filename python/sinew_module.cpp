@@ -252,10 +252,11 @@ class PyWhiskers {
              std::pair<double, double> curvature_window, int moment_elements, int rest_frame,
              int rest_frames, double associate_home_px, const std::string& whisker_preset,
              double start_clearance_px, double start_mean_surround_px, bool fit_follicle_position,
-             bool profile_position, double held_ridge_px) {
+             bool profile_position, double held_ridge_px, double associate_contrast_ratio) {
     rt::WhiskerSessionOptions o;
     o.tracker.associate_home_px = associate_home_px;
     o.tracker.held_ridge_px = held_ridge_px;
+    o.tracker.associate_contrast_ratio = associate_contrast_ratio;
     o.tracker.tracker.start_clearance_px = start_clearance_px;
     o.tracker.tracker.start_mean_surround_px = start_mean_surround_px;
     o.tracker.tracker.ridge_position_from_profile = profile_position;
@@ -481,13 +482,13 @@ Whiskers(face='auto', redetect='every', min_length_px=40, mm_per_px=0, young_mod
 base_radius_um=0, tip_radius_um=0, length_mm=0, axis_angle_deg=0, curvature_window=(0, 30),
 moment_elements=3, rest_frame=0, rest_frames=1, associate_home_px=0, whisker_preset='',
 start_clearance_px=0, start_mean_surround_px=0, fit_follicle_position=False,
-profile_position=False, held_ridge_px=2): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
+profile_position=False, held_ridge_px=2, associate_contrast_ratio=2): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
 the radii, curvature and moment are in pixel model units. whisker_preset='rat-c2' takes the modulus,
 radii and length from the literature (docs/tracker.md); keywords given other values override them.
 )doc")
       .def(py::init<const std::string&, const std::string&, double, double, double, double, double,
                     double, double, std::pair<double, double>, int, int, int, double,
-                    const std::string&, double, double, bool, bool, double>(),
+                    const std::string&, double, double, bool, bool, double, double>(),
            py::arg("face") = "auto", py::arg("redetect") = "every", py::arg("min_length_px") = 40.0,
            py::arg("mm_per_px") = 0.0, py::arg("young_modulus_gpa") = 3.34,
            py::arg("base_radius_um") = 0.0, py::arg("tip_radius_um") = 0.0,
@@ -497,7 +498,9 @@ radii and length from the literature (docs/tracker.md); keywords given other val
            py::arg("associate_home_px") = 0.0, py::arg("whisker_preset") = "",
            py::arg("start_clearance_px") = 0.0, py::arg("start_mean_surround_px") = 0.0,
            py::arg("fit_follicle_position") = false, py::arg("profile_position") = false,
-           py::arg("held_ridge_px") = rt::WhiskerTrackerOptions{}.held_ridge_px)
+           py::arg("held_ridge_px") = rt::WhiskerTrackerOptions{}.held_ridge_px,
+           py::arg("associate_contrast_ratio") =
+               rt::WhiskerTrackerOptions{}.associate_contrast_ratio)
       .def("track", &PyWhiskers::track, py::arg("frame"), R"doc(
 Processes one grey frame (2-D uint8 numpy array, read in place): detection on the first, then
 tracking, detection again and association (redetect), read-out and contact. Returns a dict with

@@ -19,10 +19,10 @@ tangent was written out, which rounds differently); with the 80 % detection cove
     scripts/whisker_variants.py --video ../shared/data/whiskers/test_video_10s.mp4 --face left \
         [--tracker build/release/tools/sinew-track] [--work DIR] [-- extra sinew-track options]
 
-Prints one line per variant (whisker-frames on a ridge, of the tracked and of all, lost, on a
-pole, identity: follicle jumps and the largest median drift of a follicle from its first
-position, the tracker's median latency) and the mean and the worst over the variants. Exits 1 when
-a run fails or a whisker-frame lies on a pole.
+Prints one line per variant (whisker-frames on a ridge, of the tracked and of all, by both of
+whisker_check.py's measures; lost, on a pole; identity: follicle jumps and the largest median
+drift of a follicle from its first position; the tracker's median latency) and the mean and the
+worst over the variants. Exits 1 when a run fails or a whisker-frame lies on a pole.
 """
 import argparse
 import os
@@ -122,6 +122,8 @@ def main():
                        "whisker-frame count")
         ridge = figure(r"on a dark ridge .*: (\d+) = ([0-9.]+)% of tracked, ([0-9.]+)% of all",
                        out, "on-ridge figure")
+        near = figure(r"each side the brightest sample .*: (\d+) = ([0-9.]+)% of tracked, "
+                      r"([0-9.]+)% of all", out, "brightest-sides figure")
         pole = int(figure(r"on a pole or other thick dark object: (\d+)", out, "pole figure")[1])
         # Identity: follicle jumps between tracked frames and each whisker's median distance from
         # its first follicle (a whisker taken over by a neighbour drifts by the neighbours' spacing).
@@ -132,6 +134,7 @@ def main():
         row = {
             "name": name, "face": face, "frames": frames,
             "tracked": float(ridge[2]), "all": float(ridge[3]),
+            "near_tracked": float(near[2]), "near_all": float(near[3]),
             "lost": int(total[1]) - int(total[2]), "pole": pole,
             "latency_us": float(latency[1]) if latency else float("nan"),
             "jumps": jumps, "drift_px": float(drift), "drift_id": drift_id,
@@ -139,7 +142,8 @@ def main():
         failed = failed or pole > 0
         rows.append(row)
         print(f"{name:11s} face {face:6s} {frames} frames: on a ridge {row['tracked']:5.1f} % of "
-              f"tracked, {row['all']:5.1f} % of all; lost {row['lost']}; on a pole {pole}; "
+              f"tracked, {row['all']:5.1f} % of all (brightest sides {row['near_tracked']:.1f} / "
+              f"{row['near_all']:.1f} %); lost {row['lost']}; on a pole {pole}; "
               f"follicle jumps {jumps}, largest drift {row['drift_px']:.1f} px (id {drift_id}); "
               f"median latency {row['latency_us']:.0f} us", flush=True)
     if rows:
@@ -147,9 +151,13 @@ def main():
         mean_tracked = sum(r["tracked"] for r in rows) / len(rows)
         worst = min(rows, key=lambda r: r["all"])
         mean_jumps = sum(r["jumps"] for r in rows) / len(rows)
+        mean_near = sum(r["near_all"] for r in rows) / len(rows)
+        worst_near = min(r["near_all"] for r in rows)
         print(f"mean over {len(rows)} variants: on a ridge {mean_tracked:.1f} % of tracked, "
               f"{mean_all:.1f} % of all; worst {worst['all']:.1f} % of all ({worst['name']}); "
-              f"follicle jumps {mean_jumps:.0f}")
+              f"brightest sides {mean_near:.1f} % of all, worst {worst_near:.1f} %; "
+              f"follicle jumps {mean_jumps:.0f}, largest drift "
+              f"{max(r['drift_px'] for r in rows):.1f} px")
     if scratch:
         scratch.cleanup()
     sys.exit(1 if failed or not rows else 0)

@@ -98,8 +98,12 @@ std::string WhiskerSession::process(const ImageView& frame) {
     const auto t0 = std::chrono::steady_clock::now();
     WhiskerDetection again = detect_whiskers(frame, options_.detection);
     std::vector<std::vector<Eigen::Vector2d>> traces;
-    for (const auto& w : again.whiskers) traces.push_back(w.points);
-    if (again.error.empty()) association_ = tracker_->associate(frame, traces);
+    std::vector<double> contrasts;
+    for (const auto& w : again.whiskers) {
+      traces.push_back(w.points);
+      contrasts.push_back(w.contrast_percent);
+    }
+    if (again.error.empty()) association_ = tracker_->associate(frame, traces, contrasts);
     object_distance_ = std::move(again.object_distance);
     have_objects = again.error.empty();
     redetect_seconds_ = seconds_since(t0);

@@ -149,6 +149,9 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
     return field_error("associate_angle_deg", associate_angle_deg, "must be > 0");
   if (!(associate_home_px >= 0.0))
     return field_error("associate_home_px", associate_home_px, "must be >= 0");
+  if (!(associate_contrast_ratio == 0.0 || associate_contrast_ratio > 1.0)) {
+    return field_error("associate_contrast_ratio", associate_contrast_ratio, "must be 0 or > 1");
+  }
   if (!(reacquire_radius_px > 0.0))
     return field_error("reacquire_radius_px", reacquire_radius_px, "must be > 0");
   if (!(associate_min_length_fraction >= 0.0 && associate_min_length_fraction <= 1.0)) {
@@ -221,6 +224,7 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
   anchor_follicle_.resize(trackers_.size());
   anchor_direction_.resize(trackers_.size());
   home_follicle_.resize(trackers_.size());
+  contrast_.assign(trackers_.size(), 0.0);
   for (std::size_t w = 0; w < trackers_.size(); ++w) {
     home_follicle_[w] = whiskers[w].front();
     anchor_follicle_[w] = whiskers[w].front();
@@ -371,7 +375,8 @@ Eigen::Matrix2Xd WhiskerTracker::nodes_along(int w, const std::vector<Eigen::Vec
 }
 
 WhiskerAssociation WhiskerTracker::associate(
-    const ImageView& frame, const std::vector<std::vector<Eigen::Vector2d>>& detected) {
+    const ImageView& frame, const std::vector<std::vector<Eigen::Vector2d>>& detected,
+    const std::vector<double>& detected_contrast) {
   WhiskerAssociation summary;
   const int n = num_whiskers();
   std::vector<int> cand;  // usable detections
@@ -384,7 +389,8 @@ WhiskerAssociation WhiskerTracker::associate(
 
   std::vector<double> detected_length(detected.size(), 0.0);
   for (int d : cand) detected_length[d] = arc_lengths(detected[d]).back();
-  const std::vector<int> match = match_detections(detected, cand, detected_length, summary);
+  const std::vector<int> match =
+      match_detections(detected, detected_contrast, cand, detected_length, summary);
   // A whisker that tracking kept keeps its fit, unless the fit strays from a detection that
   // covers the whisker and a refit from the detection stays on it (replacing strays without that
   // test lowered the shared video's on-ridge fraction, 76.2 % -> 68.2 %: a 30 fps frame's
@@ -394,6 +400,16 @@ WhiskerAssociation WhiskerTracker::associate(
   for (int w = 0; w < n; ++w) {
     if (match[w] < 0) continue;
     ++summary.matched;
+    if (detected_contrast.size() == detected.size() && detected_contrast[match[w]] > 0.0) {
+      // The geometric running mean of the matched detections' contrasts (a blurred frame reads
+      // a whisker fainter, so one frame's reading is not its darkness).
+      constexpr double kWeight = 0.2;
+      const double c = detected_contrast[match[w]];
+      contrast_[w] =
+          contrast_[w] > 0.0
+              ? std::exp((1.0 - kWeight) * std::log(contrast_[w]) + kWeight * std::log(c))
+              : c;
+    }
     take_detection(w, frame, detected[match[w]], detected_length[match[w]], summary);
   }
   // A whisker no detection matched keeps its fit unless the fit runs along a detection another
@@ -417,7 +433,8 @@ WhiskerAssociation WhiskerTracker::associate(
 }
 
 std::vector<int> WhiskerTracker::match_detections(
-    const std::vector<std::vector<Eigen::Vector2d>>& detected, const std::vector<int>& cand,
+    const std::vector<std::vector<Eigen::Vector2d>>& detected,
+    const std::vector<double>& detected_contrast, const std::vector<int>& cand,
     const std::vector<double>& detected_length, WhiskerAssociation& summary) const {
   const int n = num_whiskers();
   const int m = static_cast<int>(cand.size());
@@ -483,6 +500,13 @@ std::vector<int> WhiskerTracker::match_detections(
     const double dist = (fw[order_w[i]] + shift - d).norm() / fs;
     const double ang = angle[i * m + k] / as;
     double cost = dist * dist + ang * ang;
+    // A whisker's darkness is its own: a darker neighbour's detection is not its.
+    if (options_.associate_contrast_ratio > 1.0 && detected_contrast.size() == detected.size() &&
+        contrast_[order_w[i]] > 0.0 && detected_contrast[order_d[k]] > 0.0) {
+      const double r = std::log(detected_contrast[order_d[k]] / contrast_[order_w[i]]) /
+                       std::log(options_.associate_contrast_ratio);
+      cost += r * r;
+    }
     if (hs > 0.0) {
       const double far = (home[order_w[i]] + shift - d).norm() / hs;
       cost += far * far;
@@ -570,7 +594,8 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
   const bool covers = detected_length >= options_.associate_cover_fraction * rest_length(w);
   if (r.status != FrameStatus::kLost) {
     // A kept fit that strays from a detection covering its whisker is tried again from the
-    // detection; the refit replaces it only if it stays on the detection.
+    // detection; the refit replaces it if it stays on the detection, else the whisker is placed
+    // on the detection without a fit (associate_place_strays) or the stray is kept.
     if (!covers || fraction_along(w, pts) >= options_.associate_stray_fraction) return;
     const Tracker kept = trackers_[w];
     const WhiskerFrame kept_result = r;
@@ -578,9 +603,14 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
     r.summary = trackers_[w].track(frame);
     r.status = r.summary.status;
     if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
-      trackers_[w] = kept;
-      r = kept_result;
-      return;
+      if (!options_.associate_place_strays) {
+        trackers_[w] = kept;
+        r = kept_result;
+        return;
+      }
+      // The stray is not kept either: the whisker is where its detection is.
+      trackers_[w].restart_at(nodes);
+      r.status = FrameStatus::kNotConverged;
     }
     r.reacquired = true;
     ++summary.restarted;

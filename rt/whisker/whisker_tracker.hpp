@@ -73,6 +73,19 @@ struct WhiskerTrackerOptions {
   /// fitted again from the detection, and replaced when the refit stays on it, [0, 1] (0: never).
   /// A pole-pressed whisker's fit had stayed ok with its far half 28 px off.
   double associate_stray_fraction = 0.8;
+  /// ... and when that refit leaves the detection too, the whisker is placed on the detection,
+  /// reported not converged, instead of keeping the stray. (Shared video: the leftmost whisker
+  /// of the dense cluster had slid 13 px along the face and into the fur, and stayed there `ok`
+  /// for 40 frames beside its own detection; see docs/tracker.md.)
+  bool associate_place_strays = true;
+  /// A whisker's darkness is its own: the matching also costs a detection by the ratio of its
+  /// ridge contrast (DetectedWhisker::contrast_percent) to the whisker's (the geometric running
+  /// mean over its matched detections), as much as one at associate_follicle_px when they differ
+  /// by this factor, > 1 (0: not used; nor when associate() is given no contrasts). Where the
+  /// detection of a faint whisker in a dense cluster is missing, the darker neighbour's is not
+  /// taken for it and its identity does not walk (shared video: the median drift of a follicle
+  /// from its first position 55 -> 3 px; docs/tracker.md).
+  double associate_contrast_ratio = 2.0;
   /// See the header comment.
   double claim_px = 1.5;
   double claim_fraction = 0.5;
@@ -145,9 +158,12 @@ class WhiskerTracker {
   /// elsewhere, restarts on its detection (Tracker::restart_at) and is fitted to `frame` again.
   /// A whisker no detection matches keeps its own fit, so a faint whisker detection misses on a
   /// frame is not lost by it. Detection reports no pole, lick port or face outline, so no
-  /// whisker is restarted on one. Outside the real-time contract (allocates).
+  /// whisker is restarted on one. detected_contrast: each detection's ridge contrast
+  /// (DetectedWhisker::contrast_percent), or empty (see associate_contrast_ratio). Outside the
+  /// real-time contract (allocates).
   WhiskerAssociation associate(const ImageView& frame,
-                               const std::vector<std::vector<Eigen::Vector2d>>& detected);
+                               const std::vector<std::vector<Eigen::Vector2d>>& detected,
+                               const std::vector<double>& detected_contrast = {});
   /// Any whisker lost on the last tracked frame.
   bool any_lost() const;
 
@@ -167,6 +183,7 @@ class WhiskerTracker {
   // follicle on; and taking a matched detection (the anchor moves to it; a lost or straying whisker
   // restarts on it).
   std::vector<int> match_detections(const std::vector<std::vector<Eigen::Vector2d>>& detected,
+                                    const std::vector<double>& detected_contrast,
                                     const std::vector<int>& cand,
                                     const std::vector<double>& detected_length,
                                     WhiskerAssociation& summary) const;
@@ -206,6 +223,8 @@ class WhiskerTracker {
   std::vector<Eigen::Vector2d> anchor_follicle_, anchor_direction_;
   // Each whisker's follicle on the first frame (associate_home_px).
   std::vector<Eigen::Vector2d> home_follicle_;
+  // Each whisker's ridge contrast as its matched detections saw it (0: not yet seen).
+  std::vector<double> contrast_;
 };
 
 }  // namespace sinew::rt

@@ -871,6 +871,127 @@ TEST(WhiskerTracker, AHomeFollicleKeepsAWhiskerFromWalkingAlongADenseCluster) {
   EXPECT_LT(bounded, 10.0);
 }
 
+// The same walk, stopped by the whisker's darkness instead: it is fainter than the cluster's
+// whiskers (8 grey levels against 18), and associate() is given each detection's contrast. On the
+// first frame every whisker is detected (the walker's contrast is learnt from its own detection);
+// then, frame after frame, not the walker: its darker neighbour's detection is not taken for it.
+TEST(WhiskerTracker, AFaintWhiskerIsNotMatchedToADarkerNeighboursDetection) {
+  const Eigen::Vector2d centre(-60.0, 150.0);
+  const double radius = 150.0;
+  std::vector<SceneWhisker> all;
+  std::vector<double> contrast;
+  for (double phi : {-0.45, -0.25, 0.0, 0.05, 0.10, 0.15, 0.20, 0.45}) {
+    SceneWhisker w;
+    w.follicle = centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi));
+    w.angle = 0.2 + (phi < -0.1 || phi > 0.3 ? phi : 0.0);
+    w.kappa = 0.0;
+    w.length = 120.0;
+    w.contrast = phi == 0.0 ? 8.0 : 18.0;
+    all.push_back(w);
+    contrast.push_back(w.contrast);
+  }
+  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
+  for (const auto& w : all) testing::draw_whisker(image, w);
+  std::mt19937 gen(3);
+  testing::add_noise(image, 4.0, gen);
+  const std::vector<int> tracked = {0, 1, 2, 7};
+  const int walker = 2;
+
+  auto walk = [&](double ratio) {
+    WhiskerTrackerOptions o;
+    o.associate_contrast_ratio = ratio;
+    std::vector<std::vector<Eigen::Vector2d>> init;
+    for (int k : tracked) init.push_back(all[k].points());
+    WhiskerTracker tracker(init, o);
+    EXPECT_TRUE(tracker.valid()) << tracker.error();
+    double farthest = 0.0;
+    for (int f = 0; f < 6; ++f) {
+      tracker.track(image.view());
+      const Eigen::Vector2d at = tracker.anchor_follicle(walker);
+      int on = 0;
+      for (int k = 1; k < static_cast<int>(all.size()); ++k) {
+        if ((all[k].follicle - at).norm() < (all[on].follicle - at).norm()) on = k;
+      }
+      std::vector<std::vector<Eigen::Vector2d>> detected;
+      std::vector<double> detected_contrast;
+      for (int k = 0; k < static_cast<int>(all.size()); ++k) {
+        if (f > 0 && k == on) continue;
+        detected.push_back(all[k].points());
+        detected_contrast.push_back(contrast[k]);
+      }
+      tracker.associate(image.view(), detected, detected_contrast);
+      farthest =
+          std::max(farthest, (tracker.anchor_follicle(walker) - all[walker].follicle).norm());
+      for (int t : {0, 1, 3}) {
+        EXPECT_LT((tracker.anchor_follicle(t) - all[tracked[t]].follicle).norm(), 1.0)
+            << "whisker " << t << ", frame " << f;
+      }
+    }
+    return farthest;
+  };
+  const double without = walk(0.0), with = walk(2.0);
+  std::cout << "farthest the faint walker's anchor went from its own follicle: " << without
+            << " px without its darkness, " << with << " px with associate_contrast_ratio 2\n";
+  EXPECT_GT(without, 20.0);
+  EXPECT_LT(with, 1.0);
+}
+
+// A faint whisker 6 px beside a dark one that is not tracked: each frame's first search takes the
+// strongest ridge within its reach, the neighbour's, and the fit stays ok there. Its own detection
+// covers it; the refit from the detection slides back onto the neighbour. Placed on its detection
+// (associate_place_strays), the whisker is where it is, reported not converged; kept, it stays ok
+// on its neighbour.
+TEST(WhiskerTracker, AStrayWhoseRefitLeavesItsDetectionIsPlacedOnTheDetection) {
+  const Eigen::Vector2d centre(-60.0, 150.0);
+  const double radius = 150.0;
+  SceneWhisker faint, dark;
+  faint.follicle = centre + radius * Eigen::Vector2d(1.0, 0.0);
+  faint.angle = 0.0;
+  faint.kappa = 0.0;
+  faint.length = 120.0;
+  faint.contrast = 6.0;
+  dark = faint;
+  dark.follicle = centre + radius * Eigen::Vector2d(std::cos(0.04), std::sin(0.04));
+  dark.contrast = 24.0;
+  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
+  testing::draw_whisker(image, faint);
+  testing::draw_whisker(image, dark);
+  std::mt19937 gen(11);
+  testing::add_noise(image, 2.0, gen);
+  const std::vector<std::vector<Eigen::Vector2d>> detected = {faint.points(), dark.points()};
+
+  struct Outcome {
+    int on_own = 0, ok = 0;
+  };
+  auto run = [&](bool place) {
+    WhiskerTrackerOptions o;
+    o.associate_place_strays = place;
+    WhiskerTracker tracker({faint.points()}, o);
+    EXPECT_TRUE(tracker.valid()) << tracker.error();
+    Outcome out;
+    for (int f = 0; f < 6; ++f) {
+      tracker.track(image.view());
+      tracker.associate(image.view(), detected);
+      if (f == 0) continue;  // the first fit starts on the whisker's own curve
+      // The largest distance of a node from the faint whisker's line.
+      double worst = 0.0;
+      const Tracker& t = tracker.whisker(0);
+      for (int i = 0; i < t.num_nodes(); ++i) {
+        worst = std::max(worst, std::abs(t.node_position(i).y() - faint.follicle.y()));
+      }
+      out.on_own += worst < 1.0;
+      out.ok += tracker.result(0).status == FrameStatus::kOk;
+    }
+    return out;
+  };
+  const Outcome placed = run(true), kept = run(false);
+  std::cout << "frames 1-5 on its own whisker: placed " << placed.on_own << " (ok " << placed.ok
+            << "), kept " << kept.on_own << " (ok " << kept.ok << ")\n";
+  EXPECT_EQ(placed.on_own, 5);
+  EXPECT_EQ(placed.ok, 0);  // placed, not fitted: reported not converged
+  EXPECT_EQ(kept.on_own, 0);
+}
+
 TEST(WhiskerTracker, AssociationKeepsIdentitiesWhenTheHeadMovesFurtherThanTheSearchReaches) {
   // A 30 frames/s camera: between two frames the head moves 16 px and the whiskers turn 12°,
   // further than a whisker's search reaches. Detection on the new frame and associate() must put

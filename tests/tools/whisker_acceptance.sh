@@ -87,8 +87,18 @@ case "$case" in
     # orientation by the pad, 57 (51-73) before fits whose follicle passed a neighbour's were
     # discarded (follicle_order_px). With held ridges (2026-12-06): 98.4 / 95.9 %, jumps 37 (AVX2
     # off 98.4 / 95.9 %, 34; the mirror images 95.5-95.9 %, 34-42).
+    # A whisker's darkness in the matching and strays placed on their detection (2026-12-06):
+    # identities no longer walk (largest median follicle drift 55.1 -> 22.8 px; the dense
+    # cluster's ids 3 and 4: 55.1 / 29.3 -> 3.2 / 1.1 px), and the leftmost whisker of the
+    # cluster is now held on its own line, 3-5 px from its neighbours, where the first measure
+    # cannot see it (on a ridge by it on 205 of 288 tracked frames, by the brightest sides on
+    # 279). So the bounds are the 95 % by the brightest sides (99.0 / 97.0 %; AVX2 off
+    # 99.0 / 97.1; the mirror images 97.0-97.2 % of all; controls 1.6-1.7 %), the first measure
+    # with room (93.2 / 91.3 %, mirror images 91.3-91.4 % of all), follicle jumps (46; 45-46) and
+    # the drift.
     "$py" "$src/scripts/whisker_check.py" --video "$video" --results "$work/results.jsonl" \
-      --require 0.95 --require-all 0.93 --max-jumps 52
+      --require 0.90 --require-all 0.88 --require-near 0.97 --require-all-near 0.95 \
+      --max-jumps 60 --max-drift 30
     ;;
   *)
     echo "unknown case $case" >&2

@@ -434,6 +434,7 @@ int main(int argc, char** argv) {
   bool repair_traces = false;
   double associate_home_px = 0.0;
   double held_ridge_px = sinew::rt::WhiskerTrackerOptions{}.held_ridge_px;
+  double associate_contrast_ratio = sinew::rt::WhiskerTrackerOptions{}.associate_contrast_ratio;
   double start_clearance_px = 0.0;
   double start_mean_surround_px = 0.0;
   bool profile_position = false;
@@ -462,6 +463,12 @@ int main(int argc, char** argv) {
                  "--whiskers: whiskers are fitted brightest first and each one's search leaves out "
                  "the candidates this near the whiskers fitted before it (a faint whisker beside a "
                  "bright one keeps its own ridge); 0 off")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--associate-contrast-ratio", associate_contrast_ratio,
+                 "--whiskers: a whisker's darkness is its own: a detection whose ridge contrast "
+                 "differs from the whisker's by this factor costs as much as one 10 px away, so a "
+                 "faint whisker's identity does not walk onto a darker neighbour; 0 off")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   app.add_option("--start-clearance-px", start_clearance_px,
@@ -581,6 +588,7 @@ int main(int argc, char** argv) {
       w.repair_traces = repair_traces;
       w.associate_home_px = associate_home_px;
       w.held_ridge_px = held_ridge_px;
+      w.associate_contrast_ratio = associate_contrast_ratio;
       w.start_clearance_px = start_clearance_px;
       w.start_mean_surround_px = start_mean_surround_px;
       w.profile_position = profile_position;

@@ -362,6 +362,7 @@ rt::WhiskerSessionOptions session_options_of(const WhiskerTrackArgs& args) {
   session_options.detection.repair_traces = args.repair_traces;
   session_options.tracker.associate_home_px = args.associate_home_px;
   session_options.tracker.held_ridge_px = args.held_ridge_px;
+  session_options.tracker.associate_contrast_ratio = args.associate_contrast_ratio;
   session_options.tracker.tracker.start_clearance_px = args.start_clearance_px;
   session_options.tracker.tracker.start_mean_surround_px = args.start_mean_surround_px;
   session_options.tracker.tracker.ridge_position_from_profile = args.profile_position;

@@ -20,6 +20,8 @@ struct WhiskerTrackArgs {
   bool repair_traces = false;      ///< rt::WhiskerDetectionOptions::repair_traces
   double associate_home_px = 0.0;  ///< rt::WhiskerTrackerOptions::associate_home_px
   double held_ridge_px = rt::WhiskerTrackerOptions{}.held_ridge_px;  ///< ... ::held_ridge_px
+  double associate_contrast_ratio =
+      rt::WhiskerTrackerOptions{}.associate_contrast_ratio;  ///< ... ::associate_contrast_ratio
   /// rt::TrackerOptions::start_clearance_px of every whisker (the follicle angle's bias)
   double start_clearance_px = 0.0;
   /// rt::TrackerOptions::start_mean_surround_px of every whisker (the follicle's sideways bias)
