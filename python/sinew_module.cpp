@@ -155,11 +155,13 @@ class PyTracker {
 // rt::detect_whiskers on one frame: the whiskers, and with keep_rejected the traces that were
 // not, with the reason.
 py::dict detect_whiskers(const py::array_t<std::uint8_t, py::array::c_style>& frame,
-                         const std::string& face, double min_length_px, bool keep_rejected) {
+                         const std::string& face, double min_length_px, bool keep_rejected,
+                         bool repair_traces) {
   rt::WhiskerDetectionOptions o;
   o.face = face_side(face);
   o.min_length_px = min_length_px;
   o.keep_rejected = keep_rejected;
+  o.repair_traces = repair_traces;
   const rt::ImageView view = grey_view(frame, "detect_whiskers");
   rt::WhiskerDetection d;
   {
@@ -466,12 +468,13 @@ the case's units. Bad input raises ValueError with the one-line message sinew-re
 )doc");
 #endif
   m.def("detect_whiskers", &detect_whiskers, py::arg("frame"), py::arg("face") = "auto",
-        py::arg("min_length_px") = 40.0, py::arg("keep_rejected") = false, R"doc(
+        py::arg("min_length_px") = 40.0, py::arg("keep_rejected") = false,
+        py::arg("repair_traces") = false, R"doc(
 Finds the whiskers of one grey frame (2-D uint8 numpy array) with no initialisation, as
 sinew-track --whiskers does on its first frame. Returns a dict: face, backlight, noise_percent,
 seed_contrast, follow_contrast, seeds, whiskers (points n x 2 from the follicle, follicle,
 length_px, contrast_percent) and, with keep_rejected, rejected (the traces that are not whiskers:
-points and reason).
+points and reason). repair_traces: as sinew-track --repair-traces (docs/tracker.md).
 )doc");
 
   py::class_<PyWhiskers>(m, "Whiskers", R"doc(

@@ -546,6 +546,9 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
     return field_error("max_extension_px", max_extension_px, "must be >= 0");
   }
   if (!(pad_extent_px >= 0.0)) return field_error("pad_extent_px", pad_extent_px, "must be >= 0");
+  if (!(min_clear_length_px >= 0.0)) {
+    return field_error("min_clear_length_px", min_clear_length_px, "must be >= 0");
+  }
   if (max_whiskers < 1) return field_error("max_whiskers", max_whiskers, "must be >= 1");
   return std::nullopt;
 }
@@ -613,10 +616,23 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
     c.contrast_percent = median_contrast(m, c.points);
     float farthest = 0.0f;
     for (const auto& p : c.points) farthest = std::max(farthest, face_distance(m, p));
+    // A whisker leaves the face (min_clear_length_px; 15 px is the shortest stretch smooth_trace
+    // fits a line to: a shorter one kept its raw points, unchecked).
+    double beyond = 0.0;
+    if (o.smoothing_degree > 0) {
+      const double clear_px = o.surround_px + o.smoothing_clear_px;
+      for (std::size_t i = 1; i < c.points.size(); ++i) {
+        if (face_distance(m, c.points[i]) >= clear_px &&
+            face_distance(m, c.points[i - 1]) >= clear_px) {
+          beyond += (c.points[i] - c.points[i - 1]).norm();
+        }
+      }
+    }
     // The mask lies ~2 px inside the edge the follicle was refined to.
     if (face_distance(m, c.follicle) > 4.0) {
       reject(c.points, "not at the face");
-    } else if (farthest < o.pad_band_px) {
+    } else if (farthest < o.pad_band_px ||
+               (o.smoothing_degree > 0 && beyond < o.min_clear_length_px)) {
       reject(c.points, "does not leave the face");
     } else if (c.contrast_percent > o.max_contrast) {
       reject(c.points, "too dark");
