@@ -309,7 +309,7 @@ void Tracker::reset_motion() noexcept {
   last_miss_px_ = std::numeric_limits<double>::infinity();
 }
 
-void Tracker::restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes) noexcept {
+void Tracker::restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes, bool narrow) noexcept {
   const int n = model_.num_nodes();
   if (nodes.cols() != n) return;
   for (int i = 0; i < n; ++i) {
@@ -322,6 +322,7 @@ void Tracker::restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes) noexce
   u_prev1_ = u_;
   u_prev2_ = u_;
   continue_as_after_a_lost_frame();
+  narrow_next_ = narrow;
 }
 
 void Tracker::reject_last_frame() noexcept {
@@ -337,6 +338,7 @@ void Tracker::continue_as_after_a_lost_frame() noexcept {
   last_accepted_ = false;
   verify_have_previous_ = false;
   last_miss_px_ = std::numeric_limits<double>::infinity();
+  narrow_next_ = false;
 }
 
 FrameSummary Tracker::track(const ImageView& frame) noexcept {
@@ -351,6 +353,7 @@ FrameSummary Tracker::track(const ImageView& frame) noexcept {
   const bool with_velocity = predict(frame);
   bool failed = false;
   const bool converged = repetitions(frame, summary, &failed);
+  narrow_next_ = false;
   const int strong_samples = measure_fit(frame, summary, converged, failed);
   if (failed || !u_.allFinite() || summary.inlier_fraction < options_.min_inlier_fraction ||
       summary.object_fraction < options_.min_inlier_fraction) {
@@ -416,9 +419,10 @@ bool Tracker::repetitions(const ImageView& frame, FrameSummary& summary,
   double last_move = std::numeric_limits<double>::infinity();
   // The first frame is where the initial polyline was drawn: no motion to catch up with. Later,
   // the first repetition searches wide only when the prediction may be off (see predictable_px).
-  bool wide_first = frames_ > 0 && (frames_ < 2 || !options_.predict || previous_lost_ ||
-                                    options_.observation != ObservationMode::kEdge ||
-                                    !(last_miss_px_ <= options_.predictable_px));
+  bool wide_first = !narrow_next_ && frames_ > 0 &&
+                    (frames_ < 2 || !options_.predict || previous_lost_ ||
+                     options_.observation != ObservationMode::kEdge ||
+                     !(last_miss_px_ <= options_.predictable_px));
   bool coarse_candidates = false;
   // The last polishing steps are skipped (see below) unless the forces are verified: per-node
   // forces are derivatives of the shape, and a forward solve of a slender beam needs the polished
@@ -464,9 +468,11 @@ bool Tracker::repetitions(const ImageView& frame, FrameSummary& summary,
       // are a tenth of this one), so the convergence test below passes either way.
       if (rep > 0 && it == 0 && step < options_.convergence_px && polish_optional) break;
     }
-    if (rep == 0 && frames_ > 0 && !wide && !failed && object_fraction_at_last_step() < 0.5) {
+    if (rep == 0 && frames_ > 0 && !wide && !failed && !narrow_next_ &&
+        object_fraction_at_last_step() < 0.5) {
       // The narrow search around the prediction did not find the object: the motion outran the
-      // prediction. Start the frame again with the wide search.
+      // prediction. Start the frame again with the wide search (not after restart_at(narrow):
+      // the object is where it was placed, or not found).
       u_ = u_predicted_;
       wide_first = true;
       rep = -1;

@@ -229,7 +229,11 @@ class Tracker {
   /// again by a detector): translations from them, rotations from their polyline's tangents
   /// against the reference's, no velocity, and the next frame searches as after a lost frame.
   /// Outside the per-frame contract only in that the caller decides when; no allocation.
-  void restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes) noexcept;
+  /// narrow: the nodes lie on the object in the frame the next track() call gets (a detection of
+  /// that frame): its first repetition searches ±search_range_px for the nearest candidates
+  /// instead of twice first_search_range_px for the strongest (which, beside a darker neighbour,
+  /// is the neighbour's).
+  void restart_at(const Eigen::Ref<const Eigen::Matrix2Xd>& nodes, bool narrow = false) noexcept;
 
   /// Discards the last frame's fit (a caller found it on another object: a neighbouring whisker,
   /// a pole): the state returns to the frame before, and the next frame searches as after a lost
@@ -345,6 +349,7 @@ class Tracker {
   std::vector<float> strength_;          // response of the candidate each line uses
   double typical_strength_ = 0.0;        // running median response of the object's inliers
   bool previous_lost_ = false;
+  bool narrow_next_ = false;    // restart_at(..., narrow): the next frame's first search is narrow
   bool last_accepted_ = false;  // the last frame's fit was taken (ok or not converged)
   double last_miss_px_ = std::numeric_limits<double>::infinity();  // prediction error, last frame
   double cutoff_ = 0.0;                                            // robust cutoff of the last step

@@ -72,9 +72,9 @@ struct WhiskerDetectionOptions {
   /// face over at most max_extension_px, on a ridge or a dark band, pixels; keep an extended one
   /// only when its follicle lies within pad_extent_px of one a trace reached by itself. Off by
   /// default: on the shared video it finds more whiskers (frame 0: 6 against 5, the peer 7), and
-  /// tracked with detection on every frame they lie on a ridge on 95.5-95.7 % of all
-  /// whisker-frames (the video and its mirror images, brightest-sides measure) against 97.1-97.2 %
-  /// by default, lost 55-61 against 29-33 (docs/tracker.md).
+  /// tracked with detection on every frame they lie on a ridge on 95.3-95.9 % of all
+  /// whisker-frames (the video and its mirror images, brightest-sides measure) against 97.9-98.0 %
+  /// by default, lost 50-60 against 18 (docs/tracker.md).
   bool repair_traces = false;
   double max_extension_px = 25.0;
   double pad_extent_px = 30.0;

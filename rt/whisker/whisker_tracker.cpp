@@ -599,7 +599,7 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
     if (!covers || fraction_along(w, pts) >= options_.associate_stray_fraction) return;
     const Tracker kept = trackers_[w];
     const WhiskerFrame kept_result = r;
-    trackers_[w].restart_at(nodes);
+    trackers_[w].restart_at(nodes, options_.associate_narrow_refit);
     r.summary = trackers_[w].track(frame);
     r.status = r.summary.status;
     if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
@@ -616,7 +616,7 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
     ++summary.restarted;
     return;
   }
-  trackers_[w].restart_at(nodes);
+  trackers_[w].restart_at(nodes, options_.associate_narrow_refit);
   r.summary = trackers_[w].track(frame);
   r.status = r.summary.status;
   if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {

@@ -96,7 +96,10 @@ case "$case" in
     # 99.0 / 97.1; the mirror images 97.0-97.2 % of all; controls 1.6-1.7 %), the first measure
     # with room (93.2 / 91.3 %, mirror images 91.3-91.4 % of all), follicle jumps (46; 45-46) and
     # the drift. With traces that never leave the face dropped (min_clear_length_px): 99.1 /
-    # 97.2 %, mirror images 97.1-97.2 %, first measure 91.5 %, jumps 47-52.
+    # 97.2 %, mirror images 97.1-97.2 %, first measure 91.5 %, jumps 47-52. With the refit from a
+    # detection searching narrowly (associate_narrow_refit): 99.1 / 97.9 %, mirror images
+    # 97.9-98.0 %, AVX2 off 97.9 %; first measure 94.3 / 93.1 %; lost 18; jumps 45-46; largest
+    # drift 22.9 px.
     "$py" "$src/scripts/whisker_check.py" --video "$video" --results "$work/results.jsonl" \
       --require 0.90 --require-all 0.88 --require-near 0.97 --require-all-near 0.95 \
       --max-jumps 60 --max-drift 30
