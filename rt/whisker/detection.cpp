@@ -34,13 +34,14 @@ bool sample(const cv::Mat& m, double x, double y, float* v) {
 // The maps detection reads: smoothed image, Hessian normal, ridge contrast, darkness, distance
 // from the face.
 struct Maps {
-  cv::Mat smooth;                   // CV_32F, Gaussian(smoothing_px)
-  cv::Mat nx, ny;                   // CV_32F unit normal (direction of largest curvature)
-  cv::Mat contrast;                 // CV_32F ridge contrast, per cent
-  cv::Mat dark;                     // CV_8U, 255 where the heavily smoothed image is dark
-  cv::Mat face;                     // CV_8U, 255 on the face
-  cv::Mat distance;                 // CV_32F distance from the face, pixels
-  double noise = 0.0;               // robust σ of the contrast map over the backlight, per cent
+  cv::Mat smooth;         // CV_32F, Gaussian(smoothing_px)
+  cv::Mat nx, ny;         // CV_32F unit normal (direction of largest curvature)
+  cv::Mat contrast;       // CV_32F ridge contrast, per cent
+  cv::Mat near_contrast;  // the same, each side the brighter of 2 and surround_px out (or empty)
+  cv::Mat dark;           // CV_8U, 255 where the heavily smoothed image is dark
+  cv::Mat face;           // CV_8U, 255 on the face
+  cv::Mat distance;       // CV_32F distance from the face, pixels
+  double noise = 0.0;     // robust σ of the contrast map over the backlight, per cent
   double seed = 0.0, follow = 0.0;  // thresholds in force: the options' or the noise's
 };
 
@@ -89,55 +90,6 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
   cv::Sobel(hs, dxx, CV_32F, 2, 0, 3);
   cv::Sobel(hs, dyy, CV_32F, 0, 2, 3);
   cv::Sobel(hs, dxy, CV_32F, 1, 1, 3);
-  m.nx.create(f.size(), CV_32F);
-  m.ny.create(f.size(), CV_32F);
-  m.contrast.create(f.size(), CV_32F);
-  const double s = o.surround_px;
-  for (int y = 0; y < f.rows; ++y) {
-    for (int x = 0; x < f.cols; ++x) {
-      // Sobel's second-derivative kernels carry a factor 4 (dxx, dyy) and 4 (dxy) alike.
-      const double a = dxx.at<float>(y, x), c = dyy.at<float>(y, x), b = dxy.at<float>(y, x);
-      const double theta = 0.5 * std::atan2(2.0 * b, a - c);  // largest-curvature direction
-      const double nxv = std::cos(theta), nyv = std::sin(theta);
-      m.nx.at<float>(y, x) = static_cast<float>(nxv);
-      m.ny.at<float>(y, x) = static_cast<float>(nyv);
-      float left, right, centre = m.smooth.at<float>(y, x);
-      float value = 0.0f;
-      if (sample(m.smooth, x - s * nxv, y - s * nyv, &left) &&
-          sample(m.smooth, x + s * nxv, y + s * nyv, &right)) {
-        const float lo = std::min(left, right), hi = std::max(left, right);
-        value = 100.0f * (lo - centre) / std::max(hi, 1.0f);
-      }
-      m.contrast.at<float>(y, x) = value;
-    }
-  }
-
-  // Averaged along the ridge (its Hessian tangent, ±contrast_averaging_px): along a whisker the
-  // contrast adds up and the noise does not, so a faint tip stays above the noise threshold for
-  // longer; across, the peak stays as sharp as it was.
-  if (o.contrast_averaging_px > 0) {
-    cv::Mat raw = m.contrast.clone();
-    const int reach = o.contrast_averaging_px;
-    for (int y = 0; y < f.rows; ++y) {
-      for (int x = 0; x < f.cols; ++x) {
-        const double tx = -m.ny.at<float>(y, x), ty = m.nx.at<float>(y, x);
-        double sum = 0.0;
-        int count = 0;
-        for (int k = -reach; k <= reach; ++k) {
-          float v;
-          if (sample(raw, x + k * tx, y + k * ty, &v)) {
-            sum += v;
-            ++count;
-          }
-        }
-        m.contrast.at<float>(y, x) = static_cast<float>(sum / std::max(count, 1));
-      }
-    }
-  }
-  if (o.contrast_smoothing_px > 0.0) {
-    cv::GaussianBlur(m.contrast, m.contrast, cv::Size(), o.contrast_smoothing_px);
-  }
-
   // Dark regions: heavily smoothed (whiskers vanish), below a fraction of the backlight.
   cv::Mat coarse;
   cv::GaussianBlur(f, coarse, cv::Size(), 4.0);
@@ -181,6 +133,78 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
       if (hits[labels.at<int>(y, x)] > 0) m.face.at<std::uint8_t>(y, x) = 255;
     }
   }
+  cv::Mat not_face;
+  cv::bitwise_not(m.face, not_face);
+  cv::distanceTransform(not_face, m.distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  m.nx.create(f.size(), CV_32F);
+  m.ny.create(f.size(), CV_32F);
+  m.contrast.create(f.size(), CV_32F);
+  const bool near = o.near_follow_px > 0.0;
+  // The second map is read only near the face: computed there (and as far out as its averaging
+  // and smoothing reach), zero elsewhere.
+  const float near_band = static_cast<float>(
+      o.near_follow_px + o.surround_px + o.contrast_averaging_px + 3.0 * o.contrast_smoothing_px);
+  if (near) m.near_contrast = cv::Mat::zeros(f.size(), CV_32F);
+  const double s = o.surround_px;
+  for (int y = 0; y < f.rows; ++y) {
+    for (int x = 0; x < f.cols; ++x) {
+      // Sobel's second-derivative kernels carry a factor 4 (dxx, dyy) and 4 (dxy) alike.
+      const double a = dxx.at<float>(y, x), c = dyy.at<float>(y, x), b = dxy.at<float>(y, x);
+      const double theta = 0.5 * std::atan2(2.0 * b, a - c);  // largest-curvature direction
+      const double nxv = std::cos(theta), nyv = std::sin(theta);
+      m.nx.at<float>(y, x) = static_cast<float>(nxv);
+      m.ny.at<float>(y, x) = static_cast<float>(nyv);
+      float left, right, centre = m.smooth.at<float>(y, x);
+      float value = 0.0f, near_value = 0.0f;
+      if (sample(m.smooth, x - s * nxv, y - s * nyv, &left) &&
+          sample(m.smooth, x + s * nxv, y + s * nyv, &right)) {
+        const float lo = std::min(left, right), hi = std::max(left, right);
+        value = 100.0f * (lo - centre) / std::max(hi, 1.0f);
+        float l2 = left, r2 = right;
+        if (near && m.distance.at<float>(y, x) < near_band &&
+            sample(m.smooth, x - 2.0 * nxv, y - 2.0 * nyv, &l2) &&
+            sample(m.smooth, x + 2.0 * nxv, y + 2.0 * nyv, &r2)) {
+          l2 = std::max(l2, left);
+          r2 = std::max(r2, right);
+          near_value = 100.0f * (std::min(l2, r2) - centre) / std::max(std::max(l2, r2), 1.0f);
+        }
+      }
+      m.contrast.at<float>(y, x) = value;
+      if (near) m.near_contrast.at<float>(y, x) = near_value;
+    }
+  }
+
+  // Averaged along the ridge (its Hessian tangent, ±contrast_averaging_px): along a whisker the
+  // contrast adds up and the noise does not, so a faint tip stays above the noise threshold for
+  // longer; across, the peak stays as sharp as it was.
+  for (cv::Mat* map : {&m.contrast, &m.near_contrast}) {
+    if (map->empty()) continue;
+    const bool banded = map == &m.near_contrast;
+    if (o.contrast_averaging_px > 0) {
+      cv::Mat raw = map->clone();
+      const int reach = o.contrast_averaging_px;
+      for (int y = 0; y < f.rows; ++y) {
+        for (int x = 0; x < f.cols; ++x) {
+          if (banded && !(m.distance.at<float>(y, x) < near_band)) continue;
+          const double tx = -m.ny.at<float>(y, x), ty = m.nx.at<float>(y, x);
+          double sum = 0.0;
+          int samples = 0;
+          for (int k = -reach; k <= reach; ++k) {
+            float v;
+            if (sample(raw, x + k * tx, y + k * ty, &v)) {
+              sum += v;
+              ++samples;
+            }
+          }
+          map->at<float>(y, x) = static_cast<float>(sum / std::max(samples, 1));
+        }
+      }
+    }
+    if (o.contrast_smoothing_px > 0.0) {
+      cv::GaussianBlur(*map, *map, cv::Size(), o.contrast_smoothing_px);
+    }
+  }
+
   // The contrast map's noise: most backlight pixels are on no ridge, so the median |contrast|
   // there is the noise's (× 1.4826 for σ).
   std::vector<float> background;
@@ -198,9 +222,6 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
   }
   m.seed = std::max(o.seed_contrast, o.seed_noise_factor * m.noise);
   m.follow = std::max(o.follow_contrast, o.follow_noise_factor * m.noise);
-  cv::Mat not_face;
-  cv::bitwise_not(m.face, not_face);
-  cv::distanceTransform(not_face, m.distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   return m;
 }
 
@@ -244,6 +265,24 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
       if (c > best) {
         best = c;
         best_offset = 0.25 * k;
+      }
+    }
+    if (best < m.follow && !m.near_contrast.empty() && face_distance(m, q) < o.near_follow_px) {
+      // Beside a neighbour 3-4 px away (whiskers converging on the pad) the side sample falls on
+      // its shoulder and the contrast reads ~0: read the gap before it instead.
+      double best_near = -1e9, near_offset = 0.0;
+      for (int k = -6; k <= 6; ++k) {
+        float v = 0.0f;
+        const Eigen::Vector2d r = q + 0.25 * k * n;
+        if (!sample(m.near_contrast, r.x(), r.y(), &v)) continue;
+        if (v > best_near) {
+          best_near = v;
+          near_offset = 0.25 * k;
+        }
+      }
+      if (best_near >= m.follow) {
+        best = best_near;
+        best_offset = near_offset;
       }
     }
     if (best >= m.follow) {
@@ -546,6 +585,8 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
     return field_error("max_extension_px", max_extension_px, "must be >= 0");
   }
   if (!(pad_extent_px >= 0.0)) return field_error("pad_extent_px", pad_extent_px, "must be >= 0");
+  if (!(near_follow_px >= 0.0))
+    return field_error("near_follow_px", near_follow_px, "must be >= 0");
   if (!(min_clear_length_px >= 0.0)) {
     return field_error("min_clear_length_px", min_clear_length_px, "must be >= 0");
   }

@@ -58,6 +58,14 @@ struct WhiskerDetectionOptions {
   double max_turn_deg = 30.0;
   /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
   int max_gap_px = 12;
+  /// Within this distance of the face, where whiskers converge on the pad, a step whose ridge
+  /// contrast falls below follow_contrast reads it again with each side the brighter of the
+  /// samples 2 px and surround_px out (the gap before a neighbour 3-4 px away, where the sample
+  /// surround_px out falls on the neighbour's shoulder), pixels, ≥ 0 (0: not read; the map is not
+  /// computed; it costs detection 1.30x). Shared video, frame 0: the dense cluster's second
+  /// whisker is traced to the face (6 whiskers found instead of 5); farther out, on the rendered
+  /// pads' crossing pairs, it let traces run on along the other whisker (docs/tracker.md).
+  double near_follow_px = 40.0;
   /// The trace a whisker is reported by: a least-squares polynomial of this degree in its arc
   /// length (0: the raw trace, re-centred step by step on a noisy ridge), fitted to the points
   /// farther than surround_px + smoothing_clear_px from the face's dark mask and extended along its
