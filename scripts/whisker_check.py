@@ -29,8 +29,9 @@ px long) are scored by both measures, for a comparison on the same frames.
 
 Prints one summary line per figure and exits 1 when an on-ridge fraction is below its bound
 (--require, --require-all, and by the brightest sides --require-near, --require-all-near), any
-whisker-frame lies on a pole, the follicle jumps add up to more than --max-jumps, or a follicle's
-median drift from its first position exceeds --max-drift (so a test can call it).
+whisker-frame lies on a pole, the follicle jumps add up to more than --max-jumps, a follicle's
+median drift from its first position exceeds --max-drift, or the follicles lie out of their first
+order along the pad on more than --max-order-breaks frames (so a test can call it).
 
 Which measure to hold a tracker to: the first cannot see a whisker 3-5 px from its neighbour, so a
 tracker that keeps such a whisker's identity scores lower by it than one whose identity walked onto
@@ -139,6 +140,9 @@ def main():
     ap.add_argument("--max-drift", type=float, default=-1.0,
                     help="exit 1 when a whisker's follicle lies a median of more than this many "
                          "pixels from its first position (an identity that walked; -1: no bound)")
+    ap.add_argument("--max-order-breaks", type=int, default=-1,
+                    help="exit 1 when the follicles lie out of their first order along the pad "
+                         "on more than this many frames (swapped identities; -1: no bound)")
     ap.add_argument("--max-jumps", type=int, default=-1,
                     help="exit 1 when the follicle jumps of all whiskers add up to more than this "
                          "(-1: no bound)")
@@ -264,7 +268,36 @@ def main():
     print(f"follicle jumps > {args.jump_px:g} px between tracked frames (id: jumps, median "
           "distance from its first follicle): " +
           ", ".join(f"{k}: {jumps[k]}, {drift[k]:.1f} px" for k in sorted(jumps)))
+    # Follicles keep their order along the pad (the principal axis of the first tracked frame's
+    # follicles): a frame where two whiskers' follicles lie in the other order than on that frame
+    # (by more than 2 px, for pairs more than 3 px apart there) has swapped identities, whatever
+    # the head did.
+    order_breaks, broken_pairs = 0, {}
+    first = next((i for i in sorted(frames)
+                  if sum(w["status"] != "lost" for w in frames[i]) >= 2), None)
+    if first is not None:
+        f0 = {w["id"]: np.asarray(w["follicle"], dtype=float) for w in frames[first]
+              if w["status"] != "lost"}
+        pts = np.array(list(f0.values()))
+        axis = np.linalg.svd(pts - pts.mean(axis=0))[2][0]
+        at0 = {k: float(v @ axis) for k, v in f0.items()}
+        for i in sorted(frames):
+            now = {w["id"]: float(np.asarray(w["follicle"], dtype=float) @ axis)
+                   for w in frames[i] if w["status"] != "lost" and w["id"] in at0}
+            broken = False
+            for a in now:
+                for b in now:
+                    if at0[a] + 3.0 < at0[b] and now[a] > now[b] + 2.0:
+                        broken = True
+                        broken_pairs[(a, b)] = broken_pairs.get((a, b), 0) + 1
+            order_breaks += broken
+    print(f"follicle order along the pad broken on {order_breaks} of {len(frames)} frames" +
+          (" (pairs: " + ", ".join(f"{a}/{b} {n}" for (a, b), n in sorted(broken_pairs.items()))
+           + ")" if broken_pairs else ""))
     if fraction < args.require or on_ridge / max(total, 1) < args.require_all or on_pole > 0:
+        sys.exit(1)
+    if args.max_order_breaks >= 0 and order_breaks > args.max_order_breaks:
+        print(f"follicle order broken on {order_breaks} frames > {args.max_order_breaks}")
         sys.exit(1)
     if (on_ridge_near / max(checked, 1) < args.require_near or
             on_ridge_near / max(total, 1) < args.require_all_near):

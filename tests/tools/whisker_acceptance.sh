@@ -103,10 +103,11 @@ case "$case" in
     # (near_follow_px; 6 whiskers on frame 0 instead of 5): 99.0 / 96.8 %, mirror images
     # 96.7-97.0 %, AVX2 off 99.1 / 96.8 %; first measure 85.4 / 83.5 % (it cannot see that whisker:
     # 115 of its 274 tracked frames, 266 by the brightest sides); lost 36-44; jumps 40-47; largest
-    # drift 13.7-14.0 px.
+    # drift 13.7-14.0 px. Follicles out of their first order along the pad (swapped identities):
+    # on 2 of 300 frames (the cluster's two, 6 px apart); 205 with 5 whiskers, 221 at 9023819.
     "$py" "$src/scripts/whisker_check.py" --video "$video" --results "$work/results.jsonl" \
       --require 0.80 --require-all 0.78 --require-near 0.97 --require-all-near 0.95 \
-      --max-jumps 60 --max-drift 25
+      --max-jumps 60 --max-drift 25 --max-order-breaks 15
     ;;
   *)
     echo "unknown case $case" >&2
