@@ -807,62 +807,82 @@ TEST(WhiskerTracker, AVanishedWhiskerIsNeverOkOnARodThatCrossesWhereItWas) {
 // frame, not the whisker itself (on the shared video, the dense cluster's whiskers converge and
 // their traces are dropped as not smooth): association takes the nearest neighbour's detection
 // for it, and the whisker's anchor (where a detection last confirmed it, what the next frame is
-// matched from and a lost whisker restarts on) walks along the cluster. associate_home_px bounds
-// the walk by the whisker's first follicle.
-TEST(WhiskerTracker, AHomeFollicleKeepsAWhiskerFromWalkingAlongADenseCluster) {
+// matched from and a lost whisker restarts on) walks along the cluster. Tracked: two whiskers
+// above the cluster, its first one (the walker) and one below; the cluster's other whiskers,
+// parallel and 7.5 px apart, are not.
+struct ClusterScene {
+  std::vector<SceneWhisker> all;
+  std::vector<double> contrast;
+  testing::GreyImage image{400, 300, 0};
+  std::vector<int> tracked = {0, 1, 2, 7};
+  int walker = 2;  // index into tracked
+};
+
+ClusterScene cluster_scene(double walker_contrast, double others_contrast) {
+  ClusterScene s;
   const Eigen::Vector2d centre(-60.0, 150.0);
   const double radius = 150.0;
-  std::vector<SceneWhisker> all;
   for (double phi : {-0.45, -0.25, 0.0, 0.05, 0.10, 0.15, 0.20, 0.45}) {
     SceneWhisker w;
     w.follicle = centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi));
     w.angle = 0.2 + (phi < -0.1 || phi > 0.3 ? phi : 0.0);  // the cluster's whiskers parallel
     w.kappa = 0.0;
     w.length = 120.0;
-    w.contrast = 14.0;
-    all.push_back(w);
+    w.contrast = phi == 0.0 ? walker_contrast : others_contrast;
+    s.all.push_back(w);
+    s.contrast.push_back(w.contrast);
   }
-  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
-  for (const auto& w : all) testing::draw_whisker(image, w);
+  s.image = testing::backlit_face(400, 300, centre, radius);
+  for (const auto& w : s.all) testing::draw_whisker(s.image, w);
   std::mt19937 gen(3);
-  testing::add_noise(image, 4.0, gen);
-  // Tracked: two whiskers above the cluster, its first one (the walker) and one below; the
-  // cluster's other whiskers are not.
-  const std::vector<int> tracked = {0, 1, 2, 7};
-  const int walker = 2;
+  testing::add_noise(s.image, 4.0, gen);
+  return s;
+}
 
-  auto walk = [&](double home_px) {
-    WhiskerTrackerOptions o;
-    o.associate_home_px = home_px;
-    std::vector<std::vector<Eigen::Vector2d>> init;
-    for (int k : tracked) init.push_back(all[k].points());
-    WhiskerTracker tracker(init, o);
-    EXPECT_TRUE(tracker.valid()) << tracker.error();
-    double farthest = 0.0;
-    for (int f = 0; f < 6; ++f) {
-      tracker.track(image.view());
-      // Every whisker is detected but the one the walker is anchored on.
-      const Eigen::Vector2d at = tracker.anchor_follicle(walker);
-      int on = 0;
-      for (int k = 1; k < static_cast<int>(all.size()); ++k) {
-        if ((all[k].follicle - at).norm() < (all[on].follicle - at).norm()) on = k;
-      }
-      std::vector<std::vector<Eigen::Vector2d>> detected;
-      for (int k = 0; k < static_cast<int>(all.size()); ++k) {
-        if (k != on) detected.push_back(all[k].points());
-      }
-      tracker.associate(image.view(), detected);
-      farthest =
-          std::max(farthest, (tracker.anchor_follicle(walker) - all[walker].follicle).norm());
-      // The whiskers that are detected stay on their own.
-      for (int t : {0, 1, 3}) {
-        EXPECT_LT((tracker.anchor_follicle(t) - all[tracked[t]].follicle).norm(), 1.0)
-            << "whisker " << t << ", frame " << f;
-      }
+// Six frames of the scene; from frame `hidden_from` on, every whisker is detected but the one the
+// walker is anchored on, and associate() is given the detections' contrasts when `with_contrast`.
+// Returns how far the walker's anchor went from its own follicle; the detected tracked whiskers
+// must stay on their own.
+double walk(const ClusterScene& s, const WhiskerTrackerOptions& o, int hidden_from,
+            bool with_contrast) {
+  std::vector<std::vector<Eigen::Vector2d>> init;
+  for (int k : s.tracked) init.push_back(s.all[k].points());
+  WhiskerTracker tracker(init, o);
+  EXPECT_TRUE(tracker.valid()) << tracker.error();
+  double farthest = 0.0;
+  for (int f = 0; f < 6; ++f) {
+    tracker.track(s.image.view());
+    const Eigen::Vector2d at = tracker.anchor_follicle(s.walker);
+    int on = 0;
+    for (int k = 1; k < static_cast<int>(s.all.size()); ++k) {
+      if ((s.all[k].follicle - at).norm() < (s.all[on].follicle - at).norm()) on = k;
     }
-    return farthest;
-  };
-  const double free_walk = walk(0.0), bounded = walk(15.0);
+    std::vector<std::vector<Eigen::Vector2d>> detected;
+    std::vector<double> detected_contrast;
+    for (int k = 0; k < static_cast<int>(s.all.size()); ++k) {
+      if (f >= hidden_from && k == on) continue;
+      detected.push_back(s.all[k].points());
+      if (with_contrast) detected_contrast.push_back(s.contrast[k]);
+    }
+    tracker.associate(s.image.view(), detected, detected_contrast);
+    farthest = std::max(
+        farthest, (tracker.anchor_follicle(s.walker) - s.all[s.tracked[s.walker]].follicle).norm());
+    for (int t : {0, 1, 3}) {
+      EXPECT_LT((tracker.anchor_follicle(t) - s.all[s.tracked[t]].follicle).norm(), 1.0)
+          << "whisker " << t << ", frame " << f;
+    }
+  }
+  return farthest;
+}
+
+// associate_home_px bounds the walk by the whisker's first follicle.
+TEST(WhiskerTracker, AHomeFollicleKeepsAWhiskerFromWalkingAlongADenseCluster) {
+  const ClusterScene s = cluster_scene(14.0, 14.0);
+  WhiskerTrackerOptions o;
+  o.associate_home_px = 0.0;
+  const double free_walk = walk(s, o, 0, false);
+  o.associate_home_px = 15.0;
+  const double bounded = walk(s, o, 0, false);
   std::cout << "farthest the walker's anchor went from its own follicle: " << free_walk
             << " px without a home, " << bounded << " px with associate_home_px 15\n";
   // The cluster's whiskers lie 7.5 px apart: without a home the walker's anchor crosses
@@ -876,161 +896,94 @@ TEST(WhiskerTracker, AHomeFollicleKeepsAWhiskerFromWalkingAlongADenseCluster) {
 // first frame every whisker is detected (the walker's contrast is learnt from its own detection);
 // then, frame after frame, not the walker: its darker neighbour's detection is not taken for it.
 TEST(WhiskerTracker, AFaintWhiskerIsNotMatchedToADarkerNeighboursDetection) {
-  const Eigen::Vector2d centre(-60.0, 150.0);
-  const double radius = 150.0;
-  std::vector<SceneWhisker> all;
-  std::vector<double> contrast;
-  for (double phi : {-0.45, -0.25, 0.0, 0.05, 0.10, 0.15, 0.20, 0.45}) {
-    SceneWhisker w;
-    w.follicle = centre + radius * Eigen::Vector2d(std::cos(phi), std::sin(phi));
-    w.angle = 0.2 + (phi < -0.1 || phi > 0.3 ? phi : 0.0);
-    w.kappa = 0.0;
-    w.length = 120.0;
-    w.contrast = phi == 0.0 ? 8.0 : 18.0;
-    all.push_back(w);
-    contrast.push_back(w.contrast);
-  }
-  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
-  for (const auto& w : all) testing::draw_whisker(image, w);
-  std::mt19937 gen(3);
-  testing::add_noise(image, 4.0, gen);
-  const std::vector<int> tracked = {0, 1, 2, 7};
-  const int walker = 2;
-
-  auto walk = [&](double ratio) {
-    WhiskerTrackerOptions o;
-    o.associate_contrast_ratio = ratio;
-    std::vector<std::vector<Eigen::Vector2d>> init;
-    for (int k : tracked) init.push_back(all[k].points());
-    WhiskerTracker tracker(init, o);
-    EXPECT_TRUE(tracker.valid()) << tracker.error();
-    double farthest = 0.0;
-    for (int f = 0; f < 6; ++f) {
-      tracker.track(image.view());
-      const Eigen::Vector2d at = tracker.anchor_follicle(walker);
-      int on = 0;
-      for (int k = 1; k < static_cast<int>(all.size()); ++k) {
-        if ((all[k].follicle - at).norm() < (all[on].follicle - at).norm()) on = k;
-      }
-      std::vector<std::vector<Eigen::Vector2d>> detected;
-      std::vector<double> detected_contrast;
-      for (int k = 0; k < static_cast<int>(all.size()); ++k) {
-        if (f > 0 && k == on) continue;
-        detected.push_back(all[k].points());
-        detected_contrast.push_back(contrast[k]);
-      }
-      tracker.associate(image.view(), detected, detected_contrast);
-      farthest =
-          std::max(farthest, (tracker.anchor_follicle(walker) - all[walker].follicle).norm());
-      for (int t : {0, 1, 3}) {
-        EXPECT_LT((tracker.anchor_follicle(t) - all[tracked[t]].follicle).norm(), 1.0)
-            << "whisker " << t << ", frame " << f;
-      }
-    }
-    return farthest;
-  };
-  const double without = walk(0.0), with = walk(2.0);
+  const ClusterScene s = cluster_scene(8.0, 18.0);
+  WhiskerTrackerOptions o;
+  o.associate_contrast_ratio = 0.0;
+  const double without = walk(s, o, 1, true);
+  o.associate_contrast_ratio = 2.0;
+  const double with = walk(s, o, 1, true);
   std::cout << "farthest the faint walker's anchor went from its own follicle: " << without
             << " px without its darkness, " << with << " px with associate_contrast_ratio 2\n";
   EXPECT_GT(without, 20.0);
   EXPECT_LT(with, 1.0);
 }
 
-// A faint whisker 6 px beside a dark one that is not tracked: each frame's first search takes the
-// strongest ridge within its reach, the neighbour's, and the fit stays ok there. Its own detection
-// covers it; the refit from the detection slides back onto the neighbour. Placed on its detection
+// A faint whisker beside a darker one that is not tracked (its follicle `angle` rad further along
+// the face disc): each frame's first search takes the strongest ridge within its reach, the
+// neighbour's. Its own detection covers it. Returns, for frames 1-5, whether the whisker lay within
+// 2 px of its own line after associate(), and its status.
+std::vector<std::pair<bool, FrameStatus>> beside_a_darker_one(double faint_contrast,
+                                                              double dark_contrast, double angle,
+                                                              const WhiskerTrackerOptions& o) {
+  const Eigen::Vector2d centre(-60.0, 150.0);
+  const double radius = 150.0;
+  SceneWhisker faint;
+  faint.follicle = centre + radius * Eigen::Vector2d(1.0, 0.0);
+  faint.angle = 0.0;
+  faint.kappa = 0.0;
+  faint.length = 120.0;
+  faint.contrast = faint_contrast;
+  SceneWhisker dark = faint;
+  dark.follicle = centre + radius * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+  dark.contrast = dark_contrast;
+  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
+  testing::draw_whisker(image, faint);
+  testing::draw_whisker(image, dark);
+  std::mt19937 gen(11);
+  testing::add_noise(image, 2.0, gen);
+  const std::vector<std::vector<Eigen::Vector2d>> detected = {faint.points(), dark.points()};
+  WhiskerTracker tracker({faint.points()}, o);
+  EXPECT_TRUE(tracker.valid()) << tracker.error();
+  std::vector<std::pair<bool, FrameStatus>> out;
+  for (int f = 0; f < 6; ++f) {
+    tracker.track(image.view());
+    tracker.associate(image.view(), detected);
+    if (f == 0) continue;  // the first fit starts on the whisker's own curve
+    double worst = 0.0;
+    const Tracker& t = tracker.whisker(0);
+    for (int i = 0; i < t.num_nodes(); ++i) {
+      worst = std::max(worst, std::abs(t.node_position(i).y() - faint.follicle.y()));
+    }
+    out.emplace_back(worst < 2.0, tracker.result(0).status);
+  }
+  return out;
+}
+
+// A 6-grey-level whisker 6 px beside a 24-grey-level one: the fit stays ok on the neighbour, and
+// the refit from the detection slides back onto it. Placed on its detection
 // (associate_place_strays), the whisker is where it is, reported not converged; kept, it stays ok
 // on its neighbour.
 TEST(WhiskerTracker, AStrayWhoseRefitLeavesItsDetectionIsPlacedOnTheDetection) {
-  const Eigen::Vector2d centre(-60.0, 150.0);
-  const double radius = 150.0;
-  SceneWhisker faint, dark;
-  faint.follicle = centre + radius * Eigen::Vector2d(1.0, 0.0);
-  faint.angle = 0.0;
-  faint.kappa = 0.0;
-  faint.length = 120.0;
-  faint.contrast = 6.0;
-  dark = faint;
-  dark.follicle = centre + radius * Eigen::Vector2d(std::cos(0.04), std::sin(0.04));
-  dark.contrast = 24.0;
-  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
-  testing::draw_whisker(image, faint);
-  testing::draw_whisker(image, dark);
-  std::mt19937 gen(11);
-  testing::add_noise(image, 2.0, gen);
-  const std::vector<std::vector<Eigen::Vector2d>> detected = {faint.points(), dark.points()};
-
-  struct Outcome {
-    int on_own = 0, ok = 0;
-  };
-  auto run = [&](bool place) {
+  auto count = [](bool place) {
     WhiskerTrackerOptions o;
     o.associate_place_strays = place;
     o.associate_narrow_refit = false;  // the refit leaves the detection (see the next test)
-    WhiskerTracker tracker({faint.points()}, o);
-    EXPECT_TRUE(tracker.valid()) << tracker.error();
-    Outcome out;
-    for (int f = 0; f < 6; ++f) {
-      tracker.track(image.view());
-      tracker.associate(image.view(), detected);
-      if (f == 0) continue;  // the first fit starts on the whisker's own curve
-      // The largest distance of a node from the faint whisker's line.
-      double worst = 0.0;
-      const Tracker& t = tracker.whisker(0);
-      for (int i = 0; i < t.num_nodes(); ++i) {
-        worst = std::max(worst, std::abs(t.node_position(i).y() - faint.follicle.y()));
-      }
-      out.on_own += worst < 1.0;
-      out.ok += tracker.result(0).status == FrameStatus::kOk;
+    std::pair<int, int> on_own_ok{0, 0};
+    for (const auto& [on_own, status] : beside_a_darker_one(6.0, 24.0, 0.04, o)) {
+      on_own_ok.first += on_own;
+      on_own_ok.second += status == FrameStatus::kOk;
     }
-    return out;
+    return on_own_ok;
   };
-  const Outcome placed = run(true), kept = run(false);
-  std::cout << "frames 1-5 on its own whisker: placed " << placed.on_own << " (ok " << placed.ok
-            << "), kept " << kept.on_own << " (ok " << kept.ok << ")\n";
-  EXPECT_EQ(placed.on_own, 5);
-  EXPECT_EQ(placed.ok, 0);  // placed, not fitted: reported not converged
-  EXPECT_EQ(kept.on_own, 0);
+  const auto placed = count(true), kept = count(false);
+  std::cout << "frames 1-5 on its own whisker: placed " << placed.first << " (ok " << placed.second
+            << "), kept " << kept.first << " (ok " << kept.second << ")\n";
+  EXPECT_EQ(placed.first, 5);
+  EXPECT_EQ(placed.second, 0);  // placed, not fitted: reported not converged
+  EXPECT_EQ(kept.first, 0);
 }
 
-// The same scene with a 10-grey-level whisker 9 px beside a 14-grey-level one: the refit from the
-// detection keeps to its whisker when its first search is narrow (Tracker::restart_at's narrow),
-// and the whisker is fitted (within 1.2 px of its line; ok), not only placed; with a lost frame's
-// wide search the refit takes the neighbour and the whisker is placed, not converged.
+// A 10-grey-level whisker 9 px beside a 14-grey-level one: the refit from the detection keeps to
+// its whisker when its first search is narrow (Tracker::restart_at's narrow), and the whisker is
+// fitted (ok), not only placed; with a lost frame's wide search the refit takes the neighbour and
+// the whisker is placed, not converged.
 TEST(WhiskerTracker, ARefitFromADetectionSearchesNarrowly) {
-  const Eigen::Vector2d centre(-60.0, 150.0);
-  const double radius = 150.0;
-  SceneWhisker faint, dark;
-  faint.follicle = centre + radius * Eigen::Vector2d(1.0, 0.0);
-  faint.angle = 0.0;
-  faint.kappa = 0.0;
-  faint.length = 120.0;
-  faint.contrast = 10.0;
-  dark = faint;
-  dark.follicle = centre + radius * Eigen::Vector2d(std::cos(0.06), std::sin(0.06));
-  dark.contrast = 14.0;
-  testing::GreyImage image = testing::backlit_face(400, 300, centre, radius);
-  testing::draw_whisker(image, faint);
-  testing::draw_whisker(image, dark);
-  std::mt19937 gen(11);
-  testing::add_noise(image, 2.0, gen);
-  const std::vector<std::vector<Eigen::Vector2d>> detected = {faint.points(), dark.points()};
-  auto fitted_on_own = [&](bool narrow) {
+  auto fitted_on_own = [](bool narrow) {
     WhiskerTrackerOptions o;
     o.associate_narrow_refit = narrow;
-    WhiskerTracker tracker({faint.points()}, o);
-    EXPECT_TRUE(tracker.valid()) << tracker.error();
     int count = 0;
-    for (int f = 0; f < 6; ++f) {
-      tracker.track(image.view());
-      tracker.associate(image.view(), detected);
-      if (f == 0) continue;
-      double worst = 0.0;
-      const Tracker& t = tracker.whisker(0);
-      for (int i = 0; i < t.num_nodes(); ++i) {
-        worst = std::max(worst, std::abs(t.node_position(i).y() - faint.follicle.y()));
-      }
-      count += worst < 2.0 && tracker.result(0).status == FrameStatus::kOk;
+    for (const auto& [on_own, status] : beside_a_darker_one(10.0, 14.0, 0.06, o)) {
+      count += on_own && status == FrameStatus::kOk;
     }
     return count;
   };
