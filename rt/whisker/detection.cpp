@@ -66,6 +66,23 @@ float contrast_at(const Maps& m, const Eigen::Vector2d& p) {
   return sample(m.contrast, p.x(), p.y(), &v) ? v : 0.0f;
 }
 
+// The maximum of a contrast map across a ridge at q (unit normal n) within ±1.5 px in 0.25 px
+// steps (0 outside the frame), and its offset along n.
+double across_maximum(const cv::Mat& map, const Eigen::Vector2d& q, const Eigen::Vector2d& n,
+                      double* offset) {
+  double best = -1e9;
+  for (int k = -6; k <= 6; ++k) {
+    const Eigen::Vector2d r = q + 0.25 * k * n;
+    float v = 0.0f;
+    if (!sample(map, r.x(), r.y(), &v)) v = 0.0f;
+    if (v > best) {
+      best = v;
+      *offset = 0.25 * k;
+    }
+  }
+  return best;
+}
+
 bool is_dark(const Maps& m, const Eigen::Vector2d& p) {
   const int x = static_cast<int>(std::lround(p.x())), y = static_cast<int>(std::lround(p.y()));
   if (x < 0 || y < 0 || x >= m.dark.cols || y >= m.dark.rows) return true;
@@ -258,28 +275,14 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
       break;
     }
     Eigen::Vector2d n(-t.y(), t.x());
-    // Re-centre: the contrast maximum across the ridge within ±1.5 px (0.25 px steps).
-    double best = -1e9, best_offset = 0.0;
-    for (int k = -6; k <= 6; ++k) {
-      const double c = contrast_at(m, q + 0.25 * k * n);
-      if (c > best) {
-        best = c;
-        best_offset = 0.25 * k;
-      }
-    }
+    // Re-centre: the contrast maximum across the ridge within ±1.5 px.
+    double best_offset = 0.0;
+    double best = across_maximum(m.contrast, q, n, &best_offset);
     if (best < m.follow && !m.near_contrast.empty() && face_distance(m, q) < o.near_follow_px) {
       // Beside a neighbour 3-4 px away (whiskers converging on the pad) the side sample falls on
       // its shoulder and the contrast reads ~0: read the gap before it instead.
-      double best_near = -1e9, near_offset = 0.0;
-      for (int k = -6; k <= 6; ++k) {
-        float v = 0.0f;
-        const Eigen::Vector2d r = q + 0.25 * k * n;
-        if (!sample(m.near_contrast, r.x(), r.y(), &v)) continue;
-        if (v > best_near) {
-          best_near = v;
-          near_offset = 0.25 * k;
-        }
-      }
+      double near_offset = 0.0;
+      const double best_near = across_maximum(m.near_contrast, q, n, &near_offset);
       if (best_near >= m.follow) {
         best = best_near;
         best_offset = near_offset;
@@ -655,19 +658,19 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
     c.follicle = c.points.front();
     c.length_px = polyline_length(c.points);
     c.contrast_percent = median_contrast(m, c.points);
+    // A whisker leaves the face: it reaches pad_band_px from it, and (min_clear_length_px; 15 px
+    // is the shortest stretch smooth_trace fits a line to: a shorter one kept its raw points,
+    // unchecked) runs on beyond the band where its ridge measure reads the face.
+    const double clear_px = o.surround_px + o.smoothing_clear_px;
     float farthest = 0.0f;
-    for (const auto& p : c.points) farthest = std::max(farthest, face_distance(m, p));
-    // A whisker leaves the face (min_clear_length_px; 15 px is the shortest stretch smooth_trace
-    // fits a line to: a shorter one kept its raw points, unchecked).
     double beyond = 0.0;
-    if (o.smoothing_degree > 0) {
-      const double clear_px = o.surround_px + o.smoothing_clear_px;
-      for (std::size_t i = 1; i < c.points.size(); ++i) {
-        if (face_distance(m, c.points[i]) >= clear_px &&
-            face_distance(m, c.points[i - 1]) >= clear_px) {
-          beyond += (c.points[i] - c.points[i - 1]).norm();
-        }
-      }
+    bool previous_clear = false;
+    for (std::size_t i = 0; i < c.points.size(); ++i) {
+      const float d = face_distance(m, c.points[i]);
+      farthest = std::max(farthest, d);
+      const bool clear = d >= clear_px;
+      if (clear && previous_clear) beyond += (c.points[i] - c.points[i - 1]).norm();
+      previous_clear = clear;
     }
     // The mask lies ~2 px inside the edge the follicle was refined to.
     if (face_distance(m, c.follicle) > 4.0) {

@@ -592,22 +592,28 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
   WhiskerFrame& r = results_[w];
   const Eigen::Matrix2Xd nodes = nodes_along(w, pts);
   const bool covers = detected_length >= options_.associate_cover_fraction * rest_length(w);
+  // Restarts the whisker on its detection and fits it to the frame again: whether the fit stayed
+  // on the detection.
+  auto refit = [&]() {
+    trackers_[w].restart_at(nodes, options_.associate_narrow_refit);
+    r.summary = trackers_[w].track(frame);
+    r.status = r.summary.status;
+    return r.status != FrameStatus::kLost && on_detection(w, pts);
+  };
   if (r.status != FrameStatus::kLost) {
     // A kept fit that strays from a detection covering its whisker is tried again from the
     // detection; the refit replaces it if it stays on the detection, else the whisker is placed
     // on the detection without a fit (associate_place_strays) or the stray is kept.
     if (!covers || fraction_along(w, pts) >= options_.associate_stray_fraction) return;
-    const Tracker kept = trackers_[w];
-    const WhiskerFrame kept_result = r;
-    trackers_[w].restart_at(nodes, options_.associate_narrow_refit);
-    r.summary = trackers_[w].track(frame);
-    r.status = r.summary.status;
-    if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
-      if (!options_.associate_place_strays) {
+    if (!options_.associate_place_strays) {
+      const Tracker kept = trackers_[w];
+      const WhiskerFrame kept_result = r;
+      if (!refit()) {
         trackers_[w] = kept;
         r = kept_result;
         return;
       }
+    } else if (!refit()) {
       // The stray is not kept either: the whisker is where its detection is.
       trackers_[w].restart_at(nodes);
       r.status = FrameStatus::kNotConverged;
@@ -616,10 +622,7 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
     ++summary.restarted;
     return;
   }
-  trackers_[w].restart_at(nodes, options_.associate_narrow_refit);
-  r.summary = trackers_[w].track(frame);
-  r.status = r.summary.status;
-  if (r.status == FrameStatus::kLost || !on_detection(w, pts)) {
+  if (!refit()) {
     trackers_[w].restart_at(nodes);
     // Placed without a fit: only where the detection covers the whisker; a short one would
     // leave its outer nodes guessed.
