@@ -43,31 +43,70 @@ HermiteElement hermite_element(const Eigen::Vector2d& X1,
                                const common::Vector6d& u_e,
                                const HermiteElement* previous = nullptr);
 
-/// The centreline point at ξ of an element prepared by hermite_element; without `jacobian` the
-/// point's jacobian is left unset. No allocation. Inline: the tracker evaluates it at every
-/// sample point once per Newton step.
-inline CentrelinePoint hermite_point(const HermiteElement& h, double xi, bool jacobian = true) {
-  const double L0 = h.L0;
-  const Eigen::Vector2d dt1(-h.t1.y(), h.t1.x()), dt2(-h.t2.y(), h.t2.x());  // ∂t/∂θ
+/// The cubic Hermite basis at ξ and its ξ-derivative: all that a centreline point takes from ξ.
+/// A tracker's sample points keep their ξ, so it evaluates these once, not at every Newton step.
+struct HermiteBasis {
+  /// c = h00 x₁ + h10 L₀ t₁ + h01 x₂ + h11 L₀ t₂, and ∂c/∂ξ the same with d00, d10, d01, d11.
+  double h00 = 0.0, h10 = 0.0, h01 = 0.0, h11 = 0.0;
+  double d00 = 0.0, d10 = 0.0, d01 = 0.0, d11 = 0.0;
+};
 
+inline HermiteBasis hermite_basis(double xi) {
   const double xi2 = xi * xi, xi3 = xi2 * xi;
-  const double h00 = 2 * xi3 - 3 * xi2 + 1, h10 = xi3 - 2 * xi2 + xi;
-  const double h01 = -2 * xi3 + 3 * xi2, h11 = xi3 - xi2;
-  const double d00 = 6 * xi2 - 6 * xi, d10 = 3 * xi2 - 4 * xi + 1;
-  const double d01 = -6 * xi2 + 6 * xi, d11 = 3 * xi2 - 2 * xi;
+  HermiteBasis b;
+  b.h00 = 2 * xi3 - 3 * xi2 + 1;
+  b.h10 = xi3 - 2 * xi2 + xi;
+  b.h01 = -2 * xi3 + 3 * xi2;
+  b.h11 = xi3 - xi2;
+  b.d00 = 6 * xi2 - 6 * xi;
+  b.d10 = 3 * xi2 - 4 * xi + 1;
+  b.d01 = -6 * xi2 + 6 * xi;
+  b.d11 = 3 * xi2 - 2 * xi;
+  return b;
+}
 
-  CentrelinePoint p;
-  p.position = h00 * h.x1 + h10 * L0 * h.t1 + h01 * h.x2 + h11 * L0 * h.t2;
-  Eigen::Vector2d tangent = d00 * h.x1 + d10 * L0 * h.t1 + d01 * h.x2 + d11 * L0 * h.t2;
+/// c(ξ) at the basis of its ξ, pixels. hermite_position, hermite_normal and
+/// hermite_rotation_derivatives are hermite_point in parts, for callers that need fewer of them.
+inline Eigen::Vector2d hermite_position(const HermiteElement& h, const HermiteBasis& b) {
+  const double L0 = h.L0;
+  return b.h00 * h.x1 + b.h10 * L0 * h.t1 + b.h01 * h.x2 + b.h11 * L0 * h.t2;
+}
+
+/// The unit normal at c(ξ): the tangent turned by +90° (the chord direction D where the tangent
+/// vanishes).
+inline Eigen::Vector2d hermite_normal(const HermiteElement& h, const HermiteBasis& b) {
+  const double L0 = h.L0;
+  Eigen::Vector2d tangent = b.d00 * h.x1 + b.d10 * L0 * h.t1 + b.d01 * h.x2 + b.d11 * L0 * h.t2;
   const double norm = tangent.norm();
   tangent = norm > 0 ? Eigen::Vector2d(tangent / norm) : h.D;
-  p.normal = Eigen::Vector2d(-tangent.y(), tangent.x());
+  return Eigen::Vector2d(-tangent.y(), tangent.x());
+}
+
+/// ∂c/∂θ₁ and ∂c/∂θ₂, the only columns of ∂c/∂u_e that are not multiples of the identity:
+/// ∂c/∂u_e = [h00·I, ∂c/∂θ₁, h01·I, ∂c/∂θ₂] (u_e = [ux1 uy1 θ1 ux2 uy2 θ2]).
+inline void hermite_rotation_derivatives(const HermiteElement& h, const HermiteBasis& b,
+                                         Eigen::Vector2d* dc_dtheta1, Eigen::Vector2d* dc_dtheta2) {
+  const double L0 = h.L0;
+  const Eigen::Vector2d dt1(-h.t1.y(), h.t1.x()), dt2(-h.t2.y(), h.t2.x());  // ∂t/∂θ
+  *dc_dtheta1 = b.h10 * L0 * dt1;
+  *dc_dtheta2 = b.h11 * L0 * dt2;
+}
+
+/// The centreline point at ξ of an element prepared by hermite_element; without `jacobian` the
+/// point's jacobian is left unset. No allocation.
+inline CentrelinePoint hermite_point(const HermiteElement& h, double xi, bool jacobian = true) {
+  const HermiteBasis b = hermite_basis(xi);
+  CentrelinePoint p;
+  p.position = hermite_position(h, b);
+  p.normal = hermite_normal(h, b);
   if (!jacobian) return p;
   p.jacobian.setZero();
-  p.jacobian(0, 0) = p.jacobian(1, 1) = h00;
-  p.jacobian(0, 3) = p.jacobian(1, 4) = h01;
-  p.jacobian.col(2) = h10 * L0 * dt1;
-  p.jacobian.col(5) = h11 * L0 * dt2;
+  p.jacobian(0, 0) = p.jacobian(1, 1) = b.h00;
+  p.jacobian(0, 3) = p.jacobian(1, 4) = b.h01;
+  Eigen::Vector2d dc_dtheta1, dc_dtheta2;
+  hermite_rotation_derivatives(h, b, &dc_dtheta1, &dc_dtheta2);
+  p.jacobian.col(2) = dc_dtheta1;
+  p.jacobian.col(5) = dc_dtheta2;
   return p;
 }
 

@@ -162,11 +162,14 @@ int find_candidates(const float* profile, int origin, float shift, const Profile
   const bool from_profile = search.mode == ObservationMode::kDarkRidge &&
                             search.ridge_position_from_profile && !search.ridge_mean_surround;
   int found = 0;
-  for (int k = origin - range; k <= origin + range; ++k) {
+  // Whether offset k is a local maximum strong enough: most offsets are not (NaN is not either).
+  auto is_peak = [&](int k) {
     const float r0 = response[k];
-    if (!(r0 >= search.min_strength)) continue;  // most offsets; NaN fails too
+    return r0 >= search.min_strength && r0 >= response[k - 1] && r0 > response[k + 1];
+  };
+  auto take = [&](int k) {
+    const float r0 = response[k];
     const float rm = response[k - 1], rp = response[k + 1];
-    if (!(r0 >= rm) || !(r0 > rp)) continue;
     // The vertex of a parabola through the peak and its neighbours: of the response, or of the
     // profile's darkness (only the centre samples, not the sides' noise).
     float am = rm, a0 = r0, ap = rp;
@@ -189,6 +192,23 @@ int find_candidates(const float* profile, int origin, float shift, const Profile
       out[pos] = c;
       if (found < search.max_candidates) ++found;
     }
+  };
+  int k = origin - range;
+#ifdef __SSE2__
+  // The peak test for four offsets at a time (the same comparisons, NaN included), then only the
+  // peaks in order, instead of a branch per offset that noisy responses mispredict.
+  const __m128 min_strength = _mm_set1_ps(search.min_strength);
+  for (; k + 3 <= origin + range; k += 4) {
+    const __m128 r0 = _mm_loadu_ps(response + k);
+    const __m128 peak = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(r0, min_strength),
+                                              _mm_cmpge_ps(r0, _mm_loadu_ps(response + k - 1))),
+                                   _mm_cmpgt_ps(r0, _mm_loadu_ps(response + k + 1)));
+    for (int bits = _mm_movemask_ps(peak); bits != 0; bits &= bits - 1)
+      take(k + __builtin_ctz(bits));
+  }
+#endif
+  for (; k <= origin + range; ++k) {
+    if (is_peak(k)) take(k);
   }
   return found;
 }

@@ -213,7 +213,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     for (int s = 0; s < options_.samples_per_element; ++s) {
       const float xi = static_cast<float>((s + 0.5) / options_.samples_per_element);
       if (s0 + xi * model_.element(e).length < clearance) continue;
-      sample_points_.push_back({e, xi});
+      sample_points_.push_back({e, xi, hermite_basis(xi)});
       for (int side = 0; side < sides_; ++side) {
         SearchLine& line = lines_[l++];
         line.element = e;
@@ -233,14 +233,14 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
     s0 += L0;
   }
   if (start_free) {
-    sample_points_.push_back({0, 0.0});
+    sample_points_.push_back({0, 0.0, hermite_basis(0.0)});
     lines_[l].element = 0;
     lines_[l].xi = 0.0f;
     lines_[l].point = static_cast<int>(sample_points_.size()) - 1;
     lines_[l++].end = -1;
   }
   if (end_free) {
-    sample_points_.push_back({elements - 1, 1.0});
+    sample_points_.push_back({elements - 1, 1.0, hermite_basis(1.0)});
     lines_[l].element = elements - 1;
     lines_[l].xi = 1.0f;
     lines_[l].point = static_cast<int>(sample_points_.size()) - 1;
@@ -270,7 +270,7 @@ Tracker::Tracker(common::BeamDescription beam, TrackerOptions options, std::vect
   for (Eigen::VectorXd* v :
        {&u_, &u_prev1_, &u_prev2_, &u_predicted_, &u_start_, &p_ref_, &gradient_, &du_, &forces_,
         &fitted_loads_, &u_verify_, &verify_loads_prev_, &verify_previous_state_,
-        &verify_previous_forces_, &verify_backup_, &u_searched_, &p_next_}) {
+        &verify_previous_forces_, &verify_backup_, &u_searched_, &p_next_, &u_points_}) {
     v->setZero(dofs);
   }
   tangent_.resize(n);
@@ -457,9 +457,7 @@ bool Tracker::repetitions(const ImageView& frame, FrameSummary& summary,
         break;
       }
       ++summary.iterations;
-      step = 0.0;
-      for (int i = 0; i < model_.num_nodes(); ++i)
-        step = std::max(step, du_.segment<2>(3 * i).norm());
+      step = max_node_translation(du_);
       // The repetition has converged once a step is a fraction of the frame's tolerance (steps
       // shrink ~10x per iteration; a tighter bound costs an iteration and moves nothing).
       if (step < 0.25 * options_.convergence_px) break;
@@ -518,9 +516,7 @@ bool Tracker::take_predicted_repetition(double step, bool coarse_candidates) noe
     if (fixed[k]) du_[k] = 0.0;
   }
   ldlt_.solve_in_place(du_);
-  double predicted = 0.0;
-  for (int i = 0; i < model_.num_nodes(); ++i)
-    predicted = std::max(predicted, du_.segment<2>(3 * i).norm());
+  const double predicted = max_node_translation(du_);
   if (du_.allFinite() && predicted + 0.25 * step < options_.convergence_px) {
     u_ += du_;
     return true;

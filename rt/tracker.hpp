@@ -284,15 +284,31 @@ class Tracker {
   struct SamplePoint {
     int element = 0;
     double xi = 0.0;
+    HermiteBasis basis;  // hermite_basis(xi), evaluated once
+  };
+
+  // The model curve at a sample point: what the search reads (position, normal) and what a Newton
+  // step reads (position, ∂c/∂u_e = [h00·I, dc_dtheta1, h01·I, dc_dtheta2] of its element).
+  struct ModelPoint {
+    Eigen::Vector2d position = Eigen::Vector2d::Zero();
+    Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+    Eigen::Vector2d dc_dtheta1 = Eigen::Vector2d::Zero();
+    Eigen::Vector2d dc_dtheta2 = Eigen::Vector2d::Zero();
+    double h00 = 0.0, h01 = 0.0;
   };
 
   // No velocity, no verification warm start, a wide search next (restart_at, reject_last_frame).
   void continue_as_after_a_lost_frame() noexcept;
   // points_ = the model curve at every sample point at u_: each element's rotations are evaluated
   // once (not once per search line), and the two boundaries of a sample share their point.
-  void evaluate_points(bool jacobians = true);
+  // Positions always; normals (the search, and a Newton step's expected points off the curve)
+  // and the Jacobians' parts (a Newton step) when asked.
+  void evaluate_points(bool normals, bool jacobians);
+  // Whether points_ holds what evaluate_points(normals, jacobians) would write now: it was
+  // evaluated with them at the very same state (a search's points serve the Newton step after it).
+  bool points_current(bool normals, bool jacobians) const;
   // Where the line expects the image feature at u_, and the direction it searches along.
-  Eigen::Vector2d expected_point(const SearchLine& line, const CentrelinePoint& p,
+  Eigen::Vector2d expected_point(const SearchLine& line, const ModelPoint& p,
                                  Eigen::Vector2d* direction) const;
   void search(const ImageView& frame, int range_px);
   // kAuto: compares the intensity on the centreline with that at ±(half width + 3 px) along the
@@ -323,6 +339,8 @@ class Tracker {
   int measure_fit(const ImageView& frame, FrameSummary& summary, bool converged,
                   bool failed) noexcept;
   double max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
+  // The largest node translation of a step du (pixels).
+  double max_node_translation(const Eigen::VectorXd& du) const;
   double rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
   void verify(FrameSummary& summary);
   void fit_loads(FrameSummary& summary);
@@ -343,11 +361,14 @@ class Tracker {
   // Per-frame workspace, sized at construction.
   std::vector<SearchLine> lines_;
   std::vector<SamplePoint> sample_points_;
-  std::vector<CentrelinePoint> points_;  // the model curve at sample_points_ (evaluate_points)
-  std::vector<Candidate> candidates_;    // lines_.size() x max_candidates
-  std::vector<float> residual_;          // per line, NaN when it has no candidate
-  std::vector<float> strength_;          // response of the candidate each line uses
-  double typical_strength_ = 0.0;        // running median response of the object's inliers
+  std::vector<ModelPoint> points_;  // the model curve at sample_points_ (evaluate_points)
+  // The state points_ was evaluated at, and with which parts (points_current).
+  Eigen::VectorXd u_points_;
+  bool points_normals_ = false, points_jacobians_ = false;
+  std::vector<Candidate> candidates_;  // lines_.size() x max_candidates
+  std::vector<float> residual_;        // per line, NaN when it has no candidate
+  std::vector<float> strength_;        // response of the candidate each line uses
+  double typical_strength_ = 0.0;      // running median response of the object's inliers
   bool previous_lost_ = false;
   bool narrow_next_ = false;    // restart_at(..., narrow): the next frame's first search is narrow
   bool last_accepted_ = false;  // the last frame's fit was taken (ok or not converged)

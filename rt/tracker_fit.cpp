@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "rt/centreline.hpp"
@@ -35,10 +36,27 @@ CentrelinePoint Tracker::centreline(int element, double xi) const {
   return p;
 }
 
-void Tracker::evaluate_points(bool jacobians) {
+bool Tracker::points_current(bool normals, bool jacobians) const {
+  // Bitwise: a state equal only in value (−0 and +0) is evaluated again.
+  return (points_normals_ || !normals) && (points_jacobians_ || !jacobians) &&
+         std::memcmp(u_.data(), u_points_.data(), sizeof(double) * u_.size()) == 0;
+}
+
+void Tracker::evaluate_points(bool normals, bool jacobians) {
+  u_points_ = u_;  // same size: no allocation
+  points_normals_ = normals;
+  points_jacobians_ = jacobians;
   if (options_.model != TrackerModel::kBeam) {
+    points_normals_ = points_jacobians_ = true;
     for (std::size_t k = 0; k < sample_points_.size(); ++k) {
-      points_[k] = centreline(sample_points_[k].element, sample_points_[k].xi);
+      const CentrelinePoint c = centreline(sample_points_[k].element, sample_points_[k].xi);
+      ModelPoint& p = points_[k];
+      p.position = c.position;
+      p.normal = c.normal;
+      p.h00 = c.jacobian(0, 0);
+      p.h01 = c.jacobian(0, 3);
+      p.dc_dtheta1 = c.jacobian.col(2);
+      p.dc_dtheta2 = c.jacobian.col(5);
     }
     return;
   }
@@ -54,27 +72,45 @@ void Tracker::evaluate_points(bool jacobians) {
                           e == prepared + 1 && prepared >= 0 ? &previous : nullptr);
       prepared = e;
     }
-    points_[k] = hermite_point(h, sample_points_[k].xi, jacobians);
+    const HermiteBasis& b = sample_points_[k].basis;
+    ModelPoint& p = points_[k];
+    p.position = hermite_position(h, b);
+    if (normals) p.normal = hermite_normal(h, b);
+    if (jacobians) {
+      p.h00 = b.h00;
+      p.h01 = b.h01;
+      hermite_rotation_derivatives(h, b, &p.dc_dtheta1, &p.dc_dtheta2);
+    }
   }
 }
 
 double Tracker::residuals() {
   const int K = options_.max_candidates;
   std::size_t valid = 0;
-  evaluate_points();
+  // With a zero half width every line expects its feature on the curve itself (expected_point
+  // adds 0·n): a Newton step needs no normals, and skips a square root and a division per point.
+  const bool on_curve = options_.half_width_px == 0.0;
+  if (!points_current(/*normals=*/!on_curve, /*jacobians=*/true)) {
+    evaluate_points(/*normals=*/!on_curve, /*jacobians=*/true);
+  }
   for (std::size_t l = 0; l < lines_.size(); ++l) {
     const SearchLine& line = lines_[l];
-    const CentrelinePoint& p = points_[line.point];
+    const ModelPoint& p = points_[line.point];
     if (l == 0 || lines_[l - 1].point != line.point) {
       // d = (observation − model)·n₀, so ∂d/∂u = −n₀ᵀ ∂c/∂u (the normal's own variation is
       // second order at the fit). The lines of a point share it; add_image_term reads the first's.
-      jacobian_rows_[l] = -(line.normal.transpose() * p.jacobian).transpose();
+      // Written on the structure ∂c/∂u_e = [h00·I, ∂c/∂θ₁, h01·I, ∂c/∂θ₂]: the full 2x6
+      // product's terms without its zero ones (the same rows, up to the sign of a zero entry,
+      // which add_image_term's sums from +0 do not keep).
+      const Eigen::Vector2d& n = line.normal;
+      jacobian_rows_[l] << -(n.x() * p.h00), -(n.y() * p.h00), -n.dot(p.dc_dtheta1),
+          -(n.x() * p.h01), -(n.y() * p.h01), -n.dot(p.dc_dtheta2);
     }
     residual_[l] = kNaN;
     strength_[l] = 0.0f;
     if (line.num_candidates == 0) continue;
     Eigen::Vector2d direction;
-    const Eigen::Vector2d model_point = expected_point(line, p, &direction);
+    const Eigen::Vector2d model_point = on_curve ? p.position : expected_point(line, p, &direction);
     const double model_offset = (model_point - line.centre).dot(line.normal);
     double best = std::numeric_limits<double>::infinity();
     // Candidates are sorted strongest first. In a frame's first repetition, when the model may
@@ -96,9 +132,20 @@ double Tracker::residuals() {
   }
   cutoff_ = 0.0;
   if (valid == 0) return 0.0;
-  const double median =
-      detail::kth_smallest(sorted_.data(), static_cast<int>(valid), static_cast<int>(valid / 2));
-  const double sigma = std::max(1.4826 * median, options_.min_sigma_px);
+  // σ = max(1.4826·median, min_sigma_px) is the floor exactly when more than half of the |d| give
+  // at most the floor (1.4826·|d| is monotone in |d|): then the median is not selected. A fit in
+  // little noise is there at most of its steps; NaNs leave the decision to the selection.
+  const int k = static_cast<int>(valid / 2);
+  int at_floor = 0, nan = 0;
+  for (std::size_t i = 0; i < valid; ++i) {
+    at_floor += 1.4826 * double(sorted_[i]) <= options_.min_sigma_px;
+    nan += std::isnan(sorted_[i]);
+  }
+  double sigma = options_.min_sigma_px;
+  if (at_floor <= k || nan > 0) {
+    const double median = detail::kth_smallest(sorted_.data(), static_cast<int>(valid), k);
+    sigma = std::max(1.4826 * median, options_.min_sigma_px);
+  }
   cutoff_ = options_.tukey_c * sigma;
   return cutoff_;
 }
@@ -118,22 +165,44 @@ double Tracker::object_fraction_at_last_step() const {
 void Tracker::add_image_term(double cutoff) {
   // Lines of one sample point share their Jacobian row (the same normal at the same point), so
   // their Tukey-weighted terms add up to one rank-1 update (Σw) j jᵀ; an element's updates are
-  // summed locally and scattered into the system once.
+  // summed locally and scattered into the system once. Locally only the blocks the system reads:
+  // the block-tridiagonal tangent keeps (e, e), (e+1, e) (the 6x3 `left`) and (e+1, e+1)
+  // (rows 1-3 of `right`), not (e, e+1); the snake's dense matrix takes that too (`upper`).
+  // `right` has a spare first row so that its column update is the two aligned packets (a₂, a₃),
+  // (a₄, a₅) of a = (Σw) j: a padded copy of (a₃, a₄, a₅) was built through memory, and loading
+  // it stalled on the store (a third of this function's time).
   const bool snake = options_.model == TrackerModel::kSnake;
   const double inverse_cutoff = 1.0 / cutoff;  // used only where |d| < cutoff
-  common::Matrix6d H = common::Matrix6d::Zero();
-  common::Vector6d g = common::Vector6d::Zero();
+  Eigen::Matrix<double, 6, 3> left;
+  Eigen::Matrix<double, 4, 3> right;
+  Eigen::Matrix3d upper = Eigen::Matrix3d::Zero();
+  common::Vector6d g;
+  auto clear = [&]() {
+    // Column by column: GCC turns a whole-matrix setZero here into `rep stos`, whose start-up
+    // cost was half of the scatter's.
+    for (int c = 0; c < 3; ++c) {
+      left.col(c).setZero();
+      right.col(c).setZero();
+    }
+    g.setZero();
+  };
+  clear();
   int element = -1;
   auto scatter = [&]() {
     if (element < 0) return;
     if (snake) {
-      snake_matrix_.block<6, 6>(3 * element, 3 * element) += H;
+      snake_matrix_.block<6, 3>(3 * element, 3 * element) += left;
+      snake_matrix_.block<3, 3>(3 * element, 3 * element + 3) += upper;
+      snake_matrix_.block<3, 3>(3 * element + 3, 3 * element + 3) += right.bottomRows<3>();
+      upper.setZero();
     } else {
-      tangent_.add_element(element, H);
+      // BlockTridiagonal::add_element of the 6x6 sum, block by block.
+      tangent_.diagonal(element) += left.topRows<3>();
+      tangent_.lower(element) += left.bottomRows<3>();
+      tangent_.diagonal(element + 1) += right.bottomRows<3>();
     }
     gradient_.segment<6>(3 * element) += g;
-    H.setZero();
-    g.setZero();
+    clear();
   };
   std::size_t l = 0;
   while (l < lines_.size()) {
@@ -164,7 +233,10 @@ void Tracker::add_image_term(double cutoff) {
       element = lines_[first].element;
     }
     const common::Vector6d& j = jacobian_rows_[first];
-    H.noalias() += (sum_w * j) * j.transpose();
+    const common::Vector6d a = sum_w * j;
+    left.noalias() += a * j.head<3>().transpose();
+    right.noalias() += a.segment<4>(2) * j.tail<3>().transpose();  // row 0: a₂ j, unused
+    if (snake) upper.noalias() += a.head<3>() * j.tail<3>().transpose();
     g += sum_wd * j;
   }
   scatter();
@@ -279,11 +351,11 @@ void Tracker::bending_reference_force(Eigen::VectorXd& p_ref) const {
   if (options_.model == TrackerModel::kBeam) {
     // The bending part of p is L₀·M·∂κ/∂u = M·(−e_θ₁ + e_θ₂) per element.
     for (int e = 0; e < model_.num_elements(); ++e) {
-      const common::BeamStrains h = common::beam_strains(model_.element(e), u_.segment<6>(3 * e));
+      const double kappa = common::beam_curvature(model_.element(e), u_.segment<6>(3 * e));
       const common::BeamSection& section = model_.description().sections[e];
       const double M0 =
           model_.description().prestress.empty() ? 0.0 : model_.description().prestress[e].M0;
-      const double M = (1.0 - options_.bending_memory) * (M0 + section.EI * h.kappa);
+      const double M = (1.0 - options_.bending_memory) * (M0 + section.EI * kappa);
       p_ref[3 * e + 2] -= M;
       p_ref[3 * e + 5] += M;
     }
@@ -311,11 +383,19 @@ double Tracker::rms_node_distance(const Eigen::VectorXd& a, const Eigen::VectorX
 }
 
 double Tracker::max_node_distance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const {
+  // The largest squared distance, then one square root: the square root is monotone and correctly
+  // rounded, so this is the largest of the distances exactly.
   double m = 0.0;
   for (int i = 0; i < model_.num_nodes(); ++i) {
-    m = std::max(m, (a.segment<2>(3 * i) - b.segment<2>(3 * i)).norm());
+    m = std::max(m, (a.segment<2>(3 * i) - b.segment<2>(3 * i)).squaredNorm());
   }
-  return m;
+  return std::sqrt(m);
+}
+
+double Tracker::max_node_translation(const Eigen::VectorXd& du) const {
+  double m = 0.0;  // as in max_node_distance
+  for (int i = 0; i < model_.num_nodes(); ++i) m = std::max(m, du.segment<2>(3 * i).squaredNorm());
+  return std::sqrt(m);
 }
 
 }  // namespace sinew::rt

@@ -37,7 +37,7 @@ EdgePolarity Tracker::measure_polarity(const ImageView& frame) const {
   return EdgePolarity::kAny;
 }
 
-Eigen::Vector2d Tracker::expected_point(const SearchLine& line, const CentrelinePoint& p,
+Eigen::Vector2d Tracker::expected_point(const SearchLine& line, const ModelPoint& p,
                                         Eigen::Vector2d* direction) const {
   if (line.end == 0) {
     *direction = p.normal;
@@ -50,7 +50,9 @@ Eigen::Vector2d Tracker::expected_point(const SearchLine& line, const Centreline
 
 void Tracker::search(const ImageView& frame, int range_px) {
   const int K = options_.max_candidates;
-  evaluate_points(/*jacobians=*/false);  // positions and normals; residuals() needs the rest
+  // With the Jacobians' parts (a few products per point): the Newton step that follows at this
+  // state re-uses the points instead of evaluating its elements' rotations again.
+  evaluate_points(/*normals=*/true, /*jacobians=*/true);
   ProfileSearch base = profile_search_;
   base.range_px = std::min(range_px, profile_search_.range_px);  // never past the scratch
   // In edge mode the wide first search only has to bring the model near the object's strong
@@ -99,7 +101,7 @@ void Tracker::search(const ImageView& frame, int range_px) {
   std::size_t l = 0;
   while (l < lines_.size()) {
     SearchLine& line = lines_[l];
-    const CentrelinePoint& p = points_[line.point];
+    const ModelPoint& p = points_[line.point];
     prefetch(line.point + kPrefetchAhead);
     if (line.end != 0) {
       // An end: the object gives way to background going outwards along the tangent.

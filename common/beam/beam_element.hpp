@@ -65,6 +65,12 @@ BeamElementReference make_beam_element_reference(const Eigen::Vector2d& X1,
 /// Strains for element displacements u = [ux1, uy1, θ1, ux2, uy2, θ2].
 BeamStrains beam_strains(const BeamElementReference& ref, const Vector6d& u);
 
+/// The curvature change κ = (θ₂ − θ₁)/L₀ alone: beam_strains(ref, u).kappa without the sine and
+/// cosine that e and γ need (the tracker's bending reference force reads only κ).
+inline double beam_curvature(const BeamElementReference& ref, const Vector6d& u) {
+  return (u[5] - u[2]) * (1.0 / ref.length);
+}
+
 /// Resultants N, V, M from strains.
 BeamResultants beam_resultants(const BeamSection& section, const BeamPrestress& prestress,
                                const BeamStrains& strains);

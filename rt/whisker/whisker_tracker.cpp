@@ -221,6 +221,8 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
   order_.resize(trackers_.size());
   for (std::size_t w = 0; w < trackers_.size(); ++w) order_[w] = static_cast<int>(w);
   fitted_.assign(trackers_.size(), 0);
+  held_.assign(trackers_.size(), 0);
+  held_reach_.resize(trackers_.size());
   anchor_follicle_.resize(trackers_.size());
   anchor_direction_.resize(trackers_.size());
   home_follicle_.resize(trackers_.size());
@@ -293,18 +295,33 @@ double WhiskerTracker::moved_since_previous(int w) const noexcept {
   return moved;
 }
 
-bool WhiskerTracker::held_by_other(const Eigen::Vector2d& p, int except) const noexcept {
-  const double r = options_.held_ridge_px;
-  const Eigen::Vector2d widen = Eigen::Vector2d::Constant(r);
+void WhiskerTracker::gather_held(int except) noexcept {
+  const Eigen::Vector2d widen = Eigen::Vector2d::Constant(options_.held_ridge_px);
+  held_count_ = 0;
   for (int b = 0; b < num_whiskers(); ++b) {
     if (b == except || !fitted_[b] || results_[b].status == FrameStatus::kLost) continue;
-    const Eigen::AlignedBox2d reach(boxes_[b].min() - widen, boxes_[b].max() + widen);
-    if (!reach.contains(p)) continue;
-    const Tracker& tb = trackers_[b];
+    held_[held_count_] = b;
+    held_reach_[held_count_++] =
+        Eigen::AlignedBox2d(boxes_[b].min() - widen, boxes_[b].max() + widen);
+  }
+}
+
+bool WhiskerTracker::held_by_other(const Eigen::Vector2d& p) const noexcept {
+  const double r = options_.held_ridge_px;
+  // A segment whose bounding box p lies more than r outside is farther than r: no distance and
+  // no division for it (the 1e-6 px margin is far above the distance's rounding, so the answer
+  // is the distance test's).
+  const double reach = r + 1e-6;
+  for (int k = 0; k < held_count_; ++k) {
+    if (!held_reach_[k].contains(p)) continue;
+    const Tracker& tb = trackers_[held_[k]];
     for (int j = 0; j + 1 < tb.num_nodes(); ++j) {
-      if (segment_distance_sq(p, tb.node_position(j), tb.node_position(j + 1)) <= r * r) {
-        return true;
+      const Eigen::Vector2d a = tb.node_position(j), c = tb.node_position(j + 1);
+      if (p.x() < std::min(a.x(), c.x()) - reach || p.x() > std::max(a.x(), c.x()) + reach ||
+          p.y() < std::min(a.y(), c.y()) - reach || p.y() > std::max(a.y(), c.y()) + reach) {
+        continue;
       }
+      if (segment_distance_sq(p, a, c) <= r * r) return true;
     }
   }
   return false;
@@ -698,18 +715,20 @@ void WhiskerTracker::track_one(const ImageView& frame, int w) noexcept {
   // Held ridges: those of the whiskers fitted before w on this frame.
   class HeldRidges final : public CandidateExclusion {
    public:
-    HeldRidges(const WhiskerTracker& owner, int w) : owner_(owner), w_(w) {}
+    explicit HeldRidges(const WhiskerTracker& owner) : owner_(owner) {}
     bool excluded(const Eigen::Vector2d& p) const noexcept override {
-      return owner_.held_by_other(p, w_);
+      return owner_.held_by_other(p);
     }
 
    private:
     const WhiskerTracker& owner_;
-    int w_;
   };
-  const HeldRidges held(*this, w);
+  const HeldRidges held(*this);
   Tracker& t = trackers_[w];
-  if (options_.held_ridge_px > 0.0) t.set_exclusion(&held);
+  if (options_.held_ridge_px > 0.0) {
+    gather_held(w);
+    t.set_exclusion(&held);
+  }
   WhiskerFrame& r = results_[w];
   r.summary = t.track(frame);
   t.set_exclusion(nullptr);

@@ -211,9 +211,12 @@ class WhiskerTracker {
   double moved_since_previous(int w) const noexcept;
   // Tracks whisker w on the frame (the jump test included; sets boxes_[w] and fitted_[w]).
   void track_one(const ImageView& frame, int w) noexcept;
-  // Whether p lies within held_ridge_px of the node polyline of a whisker other than `except`
-  // fitted and kept on this frame.
-  bool held_by_other(const Eigen::Vector2d& p, int except) const noexcept;
+  // held_ = the whiskers other than `except` fitted and kept on this frame, with their boxes
+  // widened by held_ridge_px (gathered once per fit: they do not change while whisker `except`
+  // is fitted, and held_by_other is asked once per candidate).
+  void gather_held(int except) noexcept;
+  // Whether p lies within held_ridge_px of the node polyline of a whisker in held_.
+  bool held_by_other(const Eigen::Vector2d& p) const noexcept;
 
   WhiskerTrackerOptions options_;
   std::string error_;
@@ -225,6 +228,9 @@ class WhiskerTracker {
   std::vector<Eigen::AlignedBox2d> boxes_;  // each fit's node bounding box, claim_px/2 wider
   std::vector<int> order_;                  // whiskers in the order they are fitted
   std::vector<char> fitted_;                // fitted on this frame yet
+  std::vector<int> held_;                   // gather_held: whiskers, the first held_count_ used
+  std::vector<Eigen::AlignedBox2d> held_reach_;  // ... and their boxes widened by held_ridge_px
+  int held_count_ = 0;
   // Where a detection last confirmed each whisker: follicle and first direction.
   std::vector<Eigen::Vector2d> anchor_follicle_, anchor_direction_;
   // Each whisker's follicle on the first frame (associate_home_px).
