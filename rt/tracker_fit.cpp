@@ -196,10 +196,7 @@ void Tracker::add_image_term(double cutoff) {
       snake_matrix_.block<3, 3>(3 * element + 3, 3 * element + 3) += right.bottomRows<3>();
       upper.setZero();
     } else {
-      // BlockTridiagonal::add_element of the 6x6 sum, block by block.
-      tangent_.diagonal(element) += left.topRows<3>();
-      tangent_.lower(element) += left.bottomRows<3>();
-      tangent_.diagonal(element + 1) += right.bottomRows<3>();
+      tangent_.add_element_lower(element, left, right.bottomRows<3>());
     }
     gradient_.segment<6>(3 * element) += g;
     clear();

@@ -31,6 +31,16 @@ class BlockTridiagonal {
 
   /// Adds a 6x6 symmetric element matrix coupling blocks i and i + 1.
   void add_element(int i, const Eigen::Matrix<double, 6, 6>& Ke);
+  /// The same, given only the blocks the matrix stores: Ke's first three columns (blocks (i, i)
+  /// over (i + 1, i)) and its block (i + 1, i + 1). For assemblies that accumulate just these (the
+  /// tracker's image term, per element and frame).
+  template <typename Derived>
+  void add_element_lower(int i, const Eigen::Matrix<double, 6, 3>& left_columns,
+                         const Eigen::MatrixBase<Derived>& bottom_right) {
+    diagonal_[i] += left_columns.topRows<3>();
+    lower_[i] += left_columns.bottomRows<3>();
+    diagonal_[i + 1] += bottom_right;
+  }
 
   /// Replaces the rows and columns of the dofs with fixed[dof] != 0 by those of the identity, so a
   /// solve returns 0 there when the right-hand side is 0 there. fixed.size() == size().

@@ -52,6 +52,24 @@ TEST(BlockTridiagonal, SolveMatchesDense) {
   }
 }
 
+// add_element_lower is add_element given only the blocks the matrix stores: for a symmetric
+// element matrix the two give the same matrix, bit for bit (the same additions).
+TEST(BlockTridiagonal, AddingTheLowerBlocksOfAnElementEqualsAddingTheElement) {
+  auto& gen = sinew::testing::rng();
+  const int n = 4;
+  BlockTridiagonal whole = random_matrix(n, 2.0, gen);
+  BlockTridiagonal lower = whole;
+  for (int i = 0; i + 1 < n; ++i) {
+    Eigen::Matrix<double, 6, 6> Ke = Eigen::Map<const Eigen::Matrix<double, 6, 6>>(
+        sinew::testing::random_vector(36, 1.0, gen).data());
+    Ke = (Ke + Ke.transpose()).eval();
+    whole.add_element(i, Ke);
+    const Eigen::Matrix<double, 6, 3> left = Ke.leftCols<3>();
+    lower.add_element_lower(i, left, Ke.bottomRightCorner<3, 3>());
+  }
+  EXPECT_EQ(whole.to_dense(), lower.to_dense());
+}
+
 TEST(BlockTridiagonal, ColumnsSolvedTogetherEqualColumnsSolvedAlone) {
   auto& gen = sinew::testing::rng();
   for (double shift : {8.0, 0.5}) {
