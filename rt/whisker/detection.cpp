@@ -66,18 +66,27 @@ float contrast_at(const Maps& m, const Eigen::Vector2d& p) {
   return sample(m.contrast, p.x(), p.y(), &v) ? v : 0.0f;
 }
 
-// The maximum of a contrast map across a ridge at q (unit normal n) within ±1.5 px in 0.25 px
-// steps (0 outside the frame), and its offset along n.
+// The contrast maximum across a ridge at q (unit normal n) within ±1.5 px in 0.25 px steps (0
+// outside the frame), and its offset along n. With local_only, only a local maximum inside the
+// window counts (-1e9 and offset 0 when there is none): where whiskers converge on the pad, a
+// maximum at the window's edge is the flank of a darker neighbour 4-6 px away, and re-centring
+// onto it walked the trace over to the neighbour. Farther out it is kept: a whisker pressed
+// against a pole has its ridge there (rendered pad: 41 contact frames missed without it).
 double across_maximum(const cv::Mat& map, const Eigen::Vector2d& q, const Eigen::Vector2d& n,
-                      double* offset) {
-  double best = -1e9;
-  for (int k = -6; k <= 6; ++k) {
+                      bool local_only, double* offset) {
+  constexpr int kReach = 6;
+  float v[2 * kReach + 1];
+  for (int k = -kReach; k <= kReach; ++k) {
     const Eigen::Vector2d r = q + 0.25 * k * n;
-    float v = 0.0f;
-    if (!sample(map, r.x(), r.y(), &v)) v = 0.0f;
-    if (v > best) {
-      best = v;
-      *offset = 0.25 * k;
+    if (!sample(map, r.x(), r.y(), &v[k + kReach])) v[k + kReach] = 0.0f;
+  }
+  double best = -1e9;
+  *offset = 0.0;
+  for (int i = 0; i <= 2 * kReach; ++i) {
+    const bool local = i > 0 && i < 2 * kReach && v[i] >= v[i - 1] && v[i] >= v[i + 1];
+    if ((local || !local_only) && v[i] > best) {
+      best = v[i];
+      *offset = 0.25 * (i - kReach);
     }
   }
   return best;
@@ -248,10 +257,18 @@ struct Trace {
   bool ended_dark = false;              // ran into a dark region (not a free tip)
 };
 
+// Steps below follow_contrast bridged on the step from p to q (see max_gap_towards_face_px).
+int gap_limit(const Maps& m, const WhiskerDetectionOptions& o, const Eigen::Vector2d& p,
+              const Eigen::Vector2d& q) {
+  const double dq = face_distance(m, q);
+  const bool towards_face = dq < face_distance(m, p) - 0.3;
+  return towards_face && dq >= o.surround_px + 1.0 ? o.max_gap_towards_face_px : o.max_gap_px;
+}
+
 // Follows a ridge from p along direction t (unit), re-centring each 1 px step on the contrast
-// maximum across the ridge. Stops after max_gap_px steps below follow_contrast (the trace keeps
-// the points up to the last strong one), at the image border, or on entering a dark region (the
-// face, whose first point it keeps).
+// maximum across the ridge. Stops after max_gap_px steps below follow_contrast (gap_limit; the
+// trace keeps the points up to the last strong one), at the image border, or on entering a dark
+// region (the face, whose first point it keeps).
 Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
              Eigen::Vector2d t) {
   Trace trace;
@@ -277,12 +294,13 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     Eigen::Vector2d n(-t.y(), t.x());
     // Re-centre: the contrast maximum across the ridge within ±1.5 px.
     double best_offset = 0.0;
-    double best = across_maximum(m.contrast, q, n, &best_offset);
-    if (best < m.follow && !m.near_contrast.empty() && face_distance(m, q) < o.near_follow_px) {
+    const bool near_face = face_distance(m, q) < o.near_follow_px;
+    double best = across_maximum(m.contrast, q, n, near_face, &best_offset);
+    if (best < m.follow && !m.near_contrast.empty() && near_face) {
       // Beside a neighbour 3-4 px away (whiskers converging on the pad) the side sample falls on
       // its shoulder and the contrast reads ~0: read the gap before it instead.
       double near_offset = 0.0;
-      const double best_near = across_maximum(m.near_contrast, q, n, &near_offset);
+      const double best_near = across_maximum(m.near_contrast, q, n, true, &near_offset);
       if (best_near >= m.follow) {
         best = best_near;
         best_offset = near_offset;
@@ -291,7 +309,7 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     if (best >= m.follow) {
       q += best_offset * n;
       gap = 0;
-    } else if (++gap > o.max_gap_px) {
+    } else if (++gap > gap_limit(m, o, p, q)) {
       break;
     }
     // The new direction: the ridge's own (Hessian) tangent, oriented along the trace, blended
@@ -385,6 +403,18 @@ void refine_follicle(const Maps& m, std::vector<Eigen::Vector2d>* points) {
 float end_contrast(const Maps& m, const std::vector<Eigen::Vector2d>& points) {
   const std::size_t k = std::min<std::size_t>(points.size(), 10);
   return median_contrast(m, std::vector<Eigen::Vector2d>(points.end() - k, points.end()));
+}
+
+// The largest turn of a trace (points ~1 px apart) between the chords over 12 points before and
+// after any of its points, degrees.
+double largest_turn_deg(const std::vector<Eigen::Vector2d>& pts) {
+  double worst = 1.0;  // cosine
+  for (std::size_t i = 12; i + 12 < pts.size(); ++i) {
+    const Eigen::Vector2d a = pts[i] - pts[i - 12], b = pts[i + 12] - pts[i];
+    if (a.norm() < 1e-9 || b.norm() < 1e-9) continue;
+    worst = std::min(worst, a.normalized().dot(b.normalized()));
+  }
+  return std::acos(std::clamp(worst, -1.0, 1.0)) * 180.0 / M_PI;
 }
 
 double polyline_length(const std::vector<Eigen::Vector2d>& pts) {
@@ -559,6 +589,9 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
   if (!(max_turn_deg > 0.0 && max_turn_deg < 180.0))
     return field_error("max_turn_deg", max_turn_deg, "must be in (0, 180)");
   if (max_gap_px < 0) return field_error("max_gap_px", max_gap_px, "must be >= 0");
+  if (max_gap_towards_face_px < max_gap_px) {
+    return field_error("max_gap_towards_face_px", max_gap_towards_face_px, "must be >= max_gap_px");
+  }
   if (!(seed_noise_factor >= 0.0)) {
     return field_error("seed_noise_factor", seed_noise_factor, "must be >= 0");
   }
@@ -678,6 +711,11 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
     } else if (farthest < o.pad_band_px ||
                (o.smoothing_degree > 0 && beyond < o.min_clear_length_px)) {
       reject(c.points, "does not leave the face");
+    } else if (largest_turn_deg(c.points) > o.max_turn_deg) {
+      // follow() holds each way from the seed to max_turn_deg; across the seed nothing did, and a
+      // trace too short for smooth_trace's fit keeps its raw points (shared video, frame 39: a
+      // trace from a whisker's middle that turned back along the cheek, 75 degrees).
+      reject(c.points, "not smooth");
     } else if (c.contrast_percent > o.max_contrast) {
       reject(c.points, "too dark");
     } else if (c.length_px < o.min_length_px) {
@@ -700,15 +738,25 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
       consider(w.points, false);
       return;
     }
+    // The fit is to the ridge centres the trace measured: a step bridging a gap went straight on
+    // from where the ridge was last seen, and is not a measurement of it.
+    std::vector<Eigen::Vector2d> measured;
+    auto keep_measured = [&](const Trace& t, std::size_t i) {
+      if (i == 0 || (t.ended_dark && i + 1 == t.points.size()) || t.contrast[i] >= m.follow) {
+        measured.push_back(t.points[i]);
+      }
+    };
+    for (std::size_t i = b.points.size(); i-- > 1;) keep_measured(b, i);
+    for (std::size_t i = 0; i < a.points.size(); ++i) keep_measured(a, i);
     bool extended = false;
     std::vector<Eigen::Vector2d> smooth =
-        smooth_trace(m, w.points, b.ended_dark, may_extend, o, &extended);
+        smooth_trace(m, measured, b.ended_dark, may_extend, o, &extended);
     if (o.repair_traces && !a.ended_dark && !b.ended_dark) {
       // Neither end reached the face, and the nearer one need not be the follicle (a tip that
       // ends beside the cheek): both are candidates, the pad decides (below).
       bool reversed_extended = false;
       std::vector<Eigen::Vector2d> reversed =
-          smooth_trace(m, std::vector<Eigen::Vector2d>(w.points.rbegin(), w.points.rend()), false,
+          smooth_trace(m, std::vector<Eigen::Vector2d>(measured.rbegin(), measured.rend()), false,
                        may_extend, o, &reversed_extended);
       if (reversed.size() >= 2) {
         if (smooth.size() >= 2)

@@ -58,6 +58,12 @@ struct WhiskerDetectionOptions {
   double max_turn_deg = 30.0;
   /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
   int max_gap_px = 12;
+  /// ... while the trace heads towards the face, at least surround_px + 1 px clear of a dark
+  /// region (the contrast map's side samples off it), ≥ max_gap_px. Shared video, frame 0: the
+  /// faint whisker beside the longest fades below follow_contrast over 15 px, 50-65 px from the
+  /// face; its trace from the tip reaches the face with 16 (16-20 find the same whiskers). Nearer
+  /// a dark region the longer bridge ran a trace on past a tip along the cheek.
+  int max_gap_towards_face_px = 16;
   /// Within this distance of the face, where whiskers converge on the pad, a step whose ridge
   /// contrast falls below follow_contrast reads it again with each side the brighter of the
   /// samples 2 px and surround_px out (the gap before a neighbour 3-4 px away, where the sample

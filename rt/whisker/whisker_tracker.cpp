@@ -172,6 +172,9 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
   if (!(held_ridge_px >= 0.0)) {
     return field_error("held_ridge_px", held_ridge_px, "must be >= 0");
   }
+  if (!(associate_pair_px >= 0.0)) {
+    return field_error("associate_pair_px", associate_pair_px, "must be >= 0");
+  }
   if (!(follicle_order_px >= 0.0)) {
     return field_error("follicle_order_px", follicle_order_px, "must be >= 0");
   }
@@ -406,8 +409,43 @@ WhiskerAssociation WhiskerTracker::associate(
 
   std::vector<double> detected_length(detected.size(), 0.0);
   for (int d : cand) detected_length[d] = arc_lengths(detected[d]).back();
-  const std::vector<int> match =
-      match_detections(detected, detected_contrast, cand, detected_length, summary);
+  // The fainter of two whiskers whose follicles lie closer than associate_pair_px is matched
+  // after all the others, to the detections they left.
+  std::vector<char> second(n, 0);
+  bool any_second = false;
+  if (options_.associate_pair_px > 0.0) {
+    for (int w = 0; w < n; ++w) {
+      for (int v = 0; v < n && !second[w]; ++v) {
+        second[w] = v != w && contrast_[w] > 0.0 && contrast_[w] < contrast_[v] &&
+                    (anchor_follicle_[v] - anchor_follicle_[w]).norm() < options_.associate_pair_px;
+      }
+      any_second = any_second || second[w];
+    }
+  }
+  std::vector<int> match;
+  if (!any_second) {
+    match = match_detections(detected, detected_contrast, cand, detected_length, {}, summary);
+  } else {
+    std::vector<char> first(n);
+    for (int w = 0; w < n; ++w) first[w] = !second[w];
+    match = match_detections(detected, detected_contrast, cand, detected_length, first, summary);
+    std::vector<char> used(detected.size(), 0);
+    for (int w = 0; w < n; ++w) {
+      if (match[w] >= 0) used[match[w]] = 1;
+    }
+    std::vector<int> left;
+    for (int d : cand) {
+      if (!used[d]) left.push_back(d);
+    }
+    if (!left.empty()) {
+      WhiskerAssociation unused = summary;  // the pad's shift stays the first matching's
+      const std::vector<int> later =
+          match_detections(detected, detected_contrast, left, detected_length, second, unused);
+      for (int w = 0; w < n; ++w) {
+        if (second[w]) match[w] = later[w];
+      }
+    }
+  }
   // A whisker that tracking kept keeps its fit, unless the fit strays from a detection that
   // covers the whisker and a refit from the detection stays on it (replacing strays without that
   // test lowered the shared video's on-ridge fraction, 76.2 % -> 68.2 %: a 30 fps frame's
@@ -452,7 +490,8 @@ WhiskerAssociation WhiskerTracker::associate(
 std::vector<int> WhiskerTracker::match_detections(
     const std::vector<std::vector<Eigen::Vector2d>>& detected,
     const std::vector<double>& detected_contrast, const std::vector<int>& cand,
-    const std::vector<double>& detected_length, WhiskerAssociation& summary) const {
+    const std::vector<double>& detected_length, const std::vector<char>& allowed,
+    WhiskerAssociation& summary) const {
   const int n = num_whiskers();
   const int m = static_cast<int>(cand.size());
   // Follicles never change their order along the face. The order is read along the principal
@@ -485,7 +524,8 @@ std::vector<int> WhiskerTracker::match_detections(
       angle[i * m + k] = std::acos(std::clamp(dd.dot(dw[w]), -1.0, 1.0));
       // A detection much shorter than the whisker (a faint or blurred stretch ended its trace)
       // cannot place it: nodes past its end would be guessed.
-      if (detected_length[order_d[k]] < options_.associate_min_length_fraction * rest_length(w)) {
+      if (detected_length[order_d[k]] < options_.associate_min_length_fraction * rest_length(w) ||
+          (!allowed.empty() && !allowed[w])) {
         angle[i * m + k] = std::numeric_limits<double>::infinity();
       }
     }

@@ -58,8 +58,10 @@ TEST(TrackWhiskerVideo, StimulusPoleAllFramesWithOverlay) {
 // Detection on the real video's frames 30-40, repairing traces (the densest detection): no
 // whisker it reports zig-zags. A trace that runs along the cheek's edge across the whiskers leaving
 // it kept its raw points unchecked (frame 35: 34 points within 14 px of the face, turning by ~90°);
-// min_clear_length_px drops it. The largest turn of a reported whisker over 12 px of its length is
-// measured here, apart from detection's own tests.
+// min_clear_length_px drops it; a trace that turns back at its seed (frame 39: 75°), detection's
+// turn test across the seed. The largest turn of a reported whisker over 12 px of its length is
+// measured here, apart from detection's own tests; without both (and follow's own turn limit,
+// max_turn_deg 179) the frames hold such traces.
 TEST(TrackWhiskerVideo, DetectionReportsNoTraceThatZigZagsAlongTheCheek) {
   const std::string video = std::string(SINEW_SHARED_DIR) + "/data/whiskers/test_video_10s.mp4";
   if (!std::filesystem::exists(video)) GTEST_SKIP() << video << " not found";
@@ -88,12 +90,13 @@ TEST(TrackWhiskerVideo, DetectionReportsNoTraceThatZigZagsAlongTheCheek) {
       worst_with = std::max(worst_with, largest_turn_deg(w.points));
     }
     o.min_clear_length_px = 0.0;
+    o.max_turn_deg = 179.0;
     for (const auto& w : sinew::rt::detect_whiskers(view, o).whiskers) {
       worst_without = std::max(worst_without, largest_turn_deg(w.points));
     }
   }
   std::cout << "largest turn of a reported whisker over 12 px, frames 30-40: " << worst_with
-            << " deg (without min_clear_length_px: " << worst_without << ")\n";
+            << " deg (without min_clear_length_px and the turn limit: " << worst_without << ")\n";
   // A whisker (radius of curvature >= 25 px) turns by less than 30° over 12 px: detection's own
   // limit for a trace (max_turn_deg).
   EXPECT_LT(worst_with, 30.0);
@@ -103,10 +106,11 @@ TEST(TrackWhiskerVideo, DetectionReportsNoTraceThatZigZagsAlongTheCheek) {
 // Frame 0 of the real video against the peer tracer's traces of it (../shared/reference/whisk_peer:
 // Janelia whisk, a peer, not ground truth): of its 7 traces that leave the face (a follicle end
 // above y = 140 and left of x = 260, at least 40 px long), detection's follicles lie within 6 px
-// of 6 (the peer's traces end up to 5 px inside the face's edge): the dense cluster's two, traced
-// to the face by near_follow_px (5 without it, the cluster's second missing), and the four others.
-// The peer's seventh, a faint whisker leaving beside the longest one, is not found. No detection
-// lies off the peer's traces.
+// of all 7 (the peer's traces end up to 5 px inside the face's edge): the dense cluster's two,
+// traced to the face by near_follow_px (5 without it, the cluster's second missing), the faint one
+// leaving beside the longest, traced to the face over its faint stretch by
+// max_gap_towards_face_px (6 without it), and the four others. No detection lies off the peer's
+// traces.
 TEST(TrackWhiskerVideo, FirstFrameDetectionFindsTheWhiskersThePeerTraces) {
   const std::string video = std::string(SINEW_SHARED_DIR) + "/data/whiskers/test_video_10s.mp4";
   const std::string peer_file =
@@ -143,10 +147,8 @@ TEST(TrackWhiskerVideo, FirstFrameDetectionFindsTheWhiskersThePeerTraces) {
   cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
   const sinew::rt::ImageView view{grey.data, grey.cols, grey.rows,
                                   static_cast<std::ptrdiff_t>(grey.step)};
-  auto matched = [&](double near_follow_px, int* off_peer) {
-    sinew::rt::WhiskerDetectionOptions o;
+  auto matched = [&](sinew::rt::WhiskerDetectionOptions o, int* off_peer) {
     o.face = sinew::rt::FaceSide::kLeft;
-    o.near_follow_px = near_follow_px;
     const auto d = sinew::rt::detect_whiskers(view, o);
     int count = 0;
     std::vector<char> taken(peer.size(), 0);
@@ -165,15 +167,23 @@ TEST(TrackWhiskerVideo, FirstFrameDetectionFindsTheWhiskersThePeerTraces) {
     }
     return count;
   };
-  int off = 0, off_before = 0;
-  const int now = matched(sinew::rt::WhiskerDetectionOptions{}.near_follow_px, &off);
-  const int before = matched(0.0, &off_before);
+  const sinew::rt::WhiskerDetectionOptions defaults;
+  sinew::rt::WhiskerDetectionOptions no_near = defaults, short_bridge = defaults;
+  no_near.near_follow_px = 0.0;
+  short_bridge.max_gap_towards_face_px = defaults.max_gap_px;
+  int off = 0, off_no_near = 0, off_short = 0;
+  const int now = matched(defaults, &off);
+  const int without_near = matched(no_near, &off_no_near);
+  const int with_short_bridge = matched(short_bridge, &off_short);
   std::cout << "frame 0: detection's follicles within 6 px of " << now << " of the peer's "
             << peer.size() << " face-leaving traces (" << off
-            << " off them); without near_follow_px " << before << " (" << off_before << ")\n";
-  EXPECT_GE(now, 6);
+            << " off them); without near_follow_px " << without_near << " (" << off_no_near
+            << "), with the short bridge towards the face " << with_short_bridge << " ("
+            << off_short << ")\n";
+  EXPECT_EQ(now, 7);
   EXPECT_EQ(off, 0);
-  EXPECT_LT(before, now);  // the option is what finds the sixth
+  EXPECT_LT(without_near, now);       // near_follow_px finds the cluster's second
+  EXPECT_LT(with_short_bridge, now);  // the longer bridge, the faint one beside the longest
 }
 
 }  // namespace
