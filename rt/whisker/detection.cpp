@@ -739,7 +739,9 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
       return;
     }
     // The fit is to the ridge centres the trace measured: a step bridging a gap went straight on
-    // from where the ridge was last seen, and is not a measurement of it.
+    // from where the ridge was last seen, and is not a measurement of it. (refine_follicle only
+    // drops or moves b's last points, so t.contrast[i] still belongs to t.points[i]; the moved
+    // last point, the follicle, is kept.)
     std::vector<Eigen::Vector2d> measured;
     auto keep_measured = [&](const Trace& t, std::size_t i) {
       if (i == 0 || (t.ended_dark && i + 1 == t.points.size()) || t.contrast[i] >= m.follow) {
