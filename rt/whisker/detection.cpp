@@ -12,6 +12,48 @@ namespace sinew::rt {
 
 namespace {
 
+// The detection's fixed scales and thresholds (once WhiskerDetectionOptions fields that no tool,
+// test or user set; issue 48 counts every option a user could tune). Each with the reason for its
+// value; the measurements are in docs/tracker.md.
+struct DetectionConstants {
+  // Gaussian smoothing before the ridge contrast is read, pixels.
+  double smoothing_px = 1.0;
+  // Scale of the Hessian that gives the ridge direction, pixels.
+  double orientation_scale_px = 1.5;
+  // The ridge contrast is averaged along the ridge over ±this many pixels ...
+  int contrast_averaging_px = 3;
+  // ... and then smoothed by a Gaussian of this σ, pixels.
+  double contrast_smoothing_px = 1.0;
+  // Distance of the side samples from the ridge centre, pixels: the tracker's line_surround_px.
+  int surround_px = 3;
+  // A trace is a whisker only if its median contrast is at most this (per cent, in the averaged
+  // map): a backlit hair is faint (shared video 1.7-4.7 %, rendered pads 1.1-3.0 %), a rod of
+  // the apparatus is not (9-14 %).
+  double max_contrast = 7.0;
+  // The seed and follow thresholds are raised to these multiples of the contrast map's own
+  // noise (its robust σ over the backlight), so that noise is neither seeded nor followed.
+  double seed_noise_factor = 4.0;
+  double follow_noise_factor = 2.5;
+  // The smoothing polynomial is fitted to the points farther than surround_px + this from the
+  // face's dark mask (nearer, a side sample falls on the face), pixels; a trace it misses by more
+  // than smoothing_max_residual_px is two whiskers or a whisker and fur (shared video, frame 0:
+  // whiskers <= 0.92 px, traces hopping between the dense cluster's whiskers 2.2-2.5 px).
+  double smoothing_clear_px = 8.0;
+  double smoothing_max_residual_px = 1.5;
+  // repair_traces: extensions to the face reach at most max_extension_px and are kept only
+  // within pad_extent_px of a follicle a trace reached by itself, pixels.
+  double max_extension_px = 25.0;
+  double pad_extent_px = 30.0;
+  // Seeds lie within this distance of the face's edge, pixels.
+  double pad_band_px = 10.0;
+  // A trace whose points lie within this of a longer whisker over most of its length is that
+  // whisker, pixels.
+  double min_separation_px = 2.0;
+  // At most this many whiskers are reported (the longest).
+  int max_whiskers = 64;
+};
+constexpr DetectionConstants kFixed{};
+
 std::string field_error(const char* field, double value, const char* constraint) {
   return common::detail::field_error("whisker detection: ", field, value, constraint);
 }
@@ -110,9 +152,9 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
                      static_cast<std::size_t>(frame.stride));
   cv::Mat f;
   grey.convertTo(f, CV_32F);
-  cv::GaussianBlur(f, m.smooth, cv::Size(), o.smoothing_px);
+  cv::GaussianBlur(f, m.smooth, cv::Size(), kFixed.smoothing_px);
   cv::Mat hs, dxx, dyy, dxy;
-  cv::GaussianBlur(f, hs, cv::Size(), o.orientation_scale_px);
+  cv::GaussianBlur(f, hs, cv::Size(), kFixed.orientation_scale_px);
   cv::Sobel(hs, dxx, CV_32F, 2, 0, 3);
   cv::Sobel(hs, dyy, CV_32F, 0, 2, 3);
   cv::Sobel(hs, dxy, CV_32F, 1, 1, 3);
@@ -168,10 +210,11 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
   const bool near = o.near_follow_px > 0.0;
   // The second map is read only near the face: computed there (and as far out as its averaging
   // and smoothing reach), zero elsewhere.
-  const float near_band = static_cast<float>(
-      o.near_follow_px + o.surround_px + o.contrast_averaging_px + 3.0 * o.contrast_smoothing_px);
+  const float near_band =
+      static_cast<float>(o.near_follow_px + kFixed.surround_px + kFixed.contrast_averaging_px +
+                         3.0 * kFixed.contrast_smoothing_px);
   if (near) m.near_contrast = cv::Mat::zeros(f.size(), CV_32F);
-  const double s = o.surround_px;
+  const double s = kFixed.surround_px;
   for (int y = 0; y < f.rows; ++y) {
     for (int x = 0; x < f.cols; ++x) {
       // Sobel's second-derivative kernels carry a factor 4 (dxx, dyy) and 4 (dxy) alike.
@@ -206,9 +249,9 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
   for (cv::Mat* map : {&m.contrast, &m.near_contrast}) {
     if (map->empty()) continue;
     const bool banded = map == &m.near_contrast;
-    if (o.contrast_averaging_px > 0) {
+    if (kFixed.contrast_averaging_px > 0) {
       cv::Mat raw = map->clone();
-      const int reach = o.contrast_averaging_px;
+      const int reach = kFixed.contrast_averaging_px;
       for (int y = 0; y < f.rows; ++y) {
         for (int x = 0; x < f.cols; ++x) {
           if (banded && !(m.distance.at<float>(y, x) < near_band)) continue;
@@ -226,8 +269,8 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
         }
       }
     }
-    if (o.contrast_smoothing_px > 0.0) {
-      cv::GaussianBlur(*map, *map, cv::Size(), o.contrast_smoothing_px);
+    if (kFixed.contrast_smoothing_px > 0.0) {
+      cv::GaussianBlur(*map, *map, cv::Size(), kFixed.contrast_smoothing_px);
     }
   }
 
@@ -246,8 +289,8 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
                      background.end());
     m.noise = 1.4826 * background[background.size() / 2];
   }
-  m.seed = std::max(o.seed_contrast, o.seed_noise_factor * m.noise);
-  m.follow = std::max(o.follow_contrast, o.follow_noise_factor * m.noise);
+  m.seed = std::max(o.seed_contrast, kFixed.seed_noise_factor * m.noise);
+  m.follow = std::max(o.follow_contrast, kFixed.follow_noise_factor * m.noise);
   return m;
 }
 
@@ -262,7 +305,7 @@ int gap_limit(const Maps& m, const WhiskerDetectionOptions& o, const Eigen::Vect
               const Eigen::Vector2d& q) {
   const double dq = face_distance(m, q);
   const bool towards_face = dq < face_distance(m, p) - 0.3;
-  return towards_face && dq >= o.surround_px + 1.0 ? o.max_gap_towards_face_px : o.max_gap_px;
+  return towards_face && dq >= kFixed.surround_px + 1.0 ? o.max_gap_towards_face_px : o.max_gap_px;
 }
 
 // Follows a ridge from p along direction t (unit), re-centring each 1 px step on the contrast
@@ -443,7 +486,7 @@ std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen
                                           bool reaches_face, bool may_extend,
                                           const WhiskerDetectionOptions& o, bool* extended_out) {
   *extended_out = false;
-  const double clear_px = o.surround_px + o.smoothing_clear_px;
+  const double clear_px = kFixed.surround_px + kFixed.smoothing_clear_px;
   std::vector<double> s(points.size(), 0.0);
   for (std::size_t i = 1; i < points.size(); ++i) {
     s[i] = s[i - 1] + (points[i] - points[i - 1]).norm();
@@ -477,7 +520,7 @@ std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen
     }
     c = V.colPivHouseholderQr().solve(P);
     Eigen::Index worst = 0;
-    if ((V * c - P).rowwise().norm().maxCoeff(&worst) <= o.smoothing_max_residual_px) break;
+    if ((V * c - P).rowwise().norm().maxCoeff(&worst) <= kFixed.smoothing_max_residual_px) break;
     // Cut 5 px beyond the worst point, on the side with fewer points.
     const std::size_t k = first + static_cast<std::size_t>(worst);
     if (!o.repair_traces) return {};
@@ -512,7 +555,7 @@ std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen
   const bool extended = may_extend && (cut_at_face || !reaches_face);
   *extended_out = extended;
   std::vector<Eigen::Vector2d> out;
-  const double reach = extended ? s0 + o.max_extension_px : s0 + 4.0;
+  const double reach = extended ? s0 + kFixed.max_extension_px : s0 + 4.0;
   double back = 0.0;
   while (back < reach && !is_dark(m, start - back * t)) back += 0.5;
   if (extended) {
@@ -522,7 +565,7 @@ std::vector<Eigen::Vector2d> smooth_trace(const Maps& m, const std::vector<Eigen
     int seen = 0, on = 0;
     for (double b = 1.0; b < back; b += 1.0) {
       const Eigen::Vector2d q = start - b * t;
-      if (face_distance(m, q) < o.surround_px + 1.0) continue;
+      if (face_distance(m, q) < kFixed.surround_px + 1.0) continue;
       ++seen;
       // Where whiskers converge a side sample of the ridge measure falls on the neighbour and the
       // measure reads ~0; the band they form is still darker than the backlight beside it.
@@ -577,11 +620,6 @@ std::optional<FaceSide> face_side_from_string(const std::string& name) {
 }
 
 std::optional<std::string> WhiskerDetectionOptions::validate() const {
-  if (!(smoothing_px > 0.0)) return field_error("smoothing_px", smoothing_px, "must be > 0");
-  if (!(orientation_scale_px > 0.0)) {
-    return field_error("orientation_scale_px", orientation_scale_px, "must be > 0");
-  }
-  if (surround_px < 1) return field_error("surround_px", surround_px, "must be >= 1");
   if (!(seed_contrast > 0.0)) return field_error("seed_contrast", seed_contrast, "must be > 0");
   if (!(follow_contrast > 0.0)) {
     return field_error("follow_contrast", follow_contrast, "must be > 0");
@@ -592,41 +630,20 @@ std::optional<std::string> WhiskerDetectionOptions::validate() const {
   if (max_gap_towards_face_px < max_gap_px) {
     return field_error("max_gap_towards_face_px", max_gap_towards_face_px, "must be >= max_gap_px");
   }
-  if (!(seed_noise_factor >= 0.0)) {
-    return field_error("seed_noise_factor", seed_noise_factor, "must be >= 0");
-  }
-  if (!(follow_noise_factor >= 0.0)) {
-    return field_error("follow_noise_factor", follow_noise_factor, "must be >= 0");
-  }
   if (!(min_length_px >= 0.0)) return field_error("min_length_px", min_length_px, "must be >= 0");
   if (!(dark_fraction > 0.0 && dark_fraction < 1.0)) {
     return field_error("dark_fraction", dark_fraction, "must be in (0, 1)");
   }
   if (!(object_fraction > 0.0 && object_fraction < 1.0))
     return field_error("object_fraction", object_fraction, "must be in (0, 1)");
-  if (!(pad_band_px > 1.0)) return field_error("pad_band_px", pad_band_px, "must be > 1");
-  if (!(min_separation_px > 0.0)) {
-    return field_error("min_separation_px", min_separation_px, "must be > 0");
-  }
   if (smoothing_degree < 0 || smoothing_degree > 6) {
     return field_error("smoothing_degree", smoothing_degree, "must be in [0, 6]");
   }
-  if (!(smoothing_clear_px >= 0.0)) {
-    return field_error("smoothing_clear_px", smoothing_clear_px, "must be >= 0");
-  }
-  if (!(smoothing_max_residual_px > 0.0)) {
-    return field_error("smoothing_max_residual_px", smoothing_max_residual_px, "must be > 0");
-  }
-  if (!(max_extension_px >= 0.0)) {
-    return field_error("max_extension_px", max_extension_px, "must be >= 0");
-  }
-  if (!(pad_extent_px >= 0.0)) return field_error("pad_extent_px", pad_extent_px, "must be >= 0");
   if (!(near_follow_px >= 0.0))
     return field_error("near_follow_px", near_follow_px, "must be >= 0");
   if (!(min_clear_length_px >= 0.0)) {
     return field_error("min_clear_length_px", min_clear_length_px, "must be >= 0");
   }
-  if (max_whiskers < 1) return field_error("max_whiskers", max_whiskers, "must be >= 1");
   return std::nullopt;
 }
 
@@ -694,7 +711,7 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
     // A whisker leaves the face: it reaches pad_band_px from it, and (min_clear_length_px; 15 px
     // is the shortest stretch smooth_trace fits a line to: a shorter one kept its raw points,
     // unchecked) runs on beyond the band where its ridge measure reads the face.
-    const double clear_px = o.surround_px + o.smoothing_clear_px;
+    const double clear_px = kFixed.surround_px + kFixed.smoothing_clear_px;
     float farthest = 0.0f;
     double beyond = 0.0;
     bool previous_clear = false;
@@ -708,7 +725,7 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
     // The mask lies ~2 px inside the edge the follicle was refined to.
     if (face_distance(m, c.follicle) > 4.0) {
       reject(c.points, "not at the face");
-    } else if (farthest < o.pad_band_px ||
+    } else if (farthest < kFixed.pad_band_px ||
                (o.smoothing_degree > 0 && beyond < o.min_clear_length_px)) {
       reject(c.points, "does not leave the face");
     } else if (largest_turn_deg(c.points) > o.max_turn_deg) {
@@ -716,7 +733,7 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
       // trace too short for smooth_trace's fit keeps its raw points (shared video, frame 39: a
       // trace from a whisker's middle that turned back along the cheek, 75 degrees).
       reject(c.points, "not smooth");
-    } else if (c.contrast_percent > o.max_contrast) {
+    } else if (c.contrast_percent > kFixed.max_contrast) {
       reject(c.points, "too dark");
     } else if (c.length_px < o.min_length_px) {
       reject(c.points, "too short");
@@ -800,7 +817,7 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
     // Both ends near the face: a whisker whose tip lies over a dark part of the face (the cheek)
     // while its follicle end stops short of the pad, where it runs among its neighbours. Which end
     // is the follicle is decided once the pad is known.
-    if (o.orient_by_pad && std::max(da, db) <= 2.0 * o.pad_band_px) {
+    if (o.orient_by_pad && std::max(da, db) <= 2.0 * kFixed.pad_band_px) {
       claim(a.points);
       claim(b.points);
       deferred.emplace_back(std::move(a), std::move(b));
@@ -847,7 +864,7 @@ void drop_off_pad(std::vector<Candidate>& found, const WhiskerDetectionOptions& 
                              [&](const Candidate& c) {
                                if (!c.extended) return false;
                                for (const auto& f : seen_follicles) {
-                                 if ((f - c.whisker.follicle).norm() <= o.pad_extent_px) {
+                                 if ((f - c.whisker.follicle).norm() <= kFixed.pad_extent_px) {
                                    return false;
                                  }
                                }
@@ -866,10 +883,10 @@ void accept_longest(std::vector<Candidate>& found, const Maps& m, const WhiskerD
     return a.whisker.length_px > b.whisker.length_px;
   });
   cv::Mat taken = cv::Mat::zeros(m.contrast.size(), CV_8U);
-  const int radius = std::max(1, static_cast<int>(std::lround(o.min_separation_px)));
+  const int radius = std::max(1, static_cast<int>(std::lround(kFixed.min_separation_px)));
   for (auto& candidate : found) {
     DetectedWhisker& w = candidate.whisker;
-    if (static_cast<int>(result.whiskers.size()) >= o.max_whiskers) break;
+    if (static_cast<int>(result.whiskers.size()) >= kFixed.max_whiskers) break;
     int on = 0;
     for (const auto& p : w.points) {
       on += taken.at<std::uint8_t>(int(std::lround(p.y())), int(std::lround(p.x()))) != 0;
@@ -894,7 +911,7 @@ void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetect
   // shadow 5-10 px off the cheek read as 16 contact frames of a whisker that touches nothing).
   cv::Mat objects, near_face, object_labels;
   cv::compare(m.smooth, o.object_fraction * result.backlight, objects, cv::CMP_LT);
-  const int reach = 2 * static_cast<int>(std::lround(o.pad_band_px)) + 1;
+  const int reach = 2 * static_cast<int>(std::lround(kFixed.pad_band_px)) + 1;
   cv::dilate(m.face, near_face,
              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * reach + 1, 2 * reach + 1)));
   const int object_count = cv::connectedComponents(objects, object_labels, 8, CV_32S);

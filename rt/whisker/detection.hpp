@@ -9,8 +9,8 @@
 /// Gaussian-smoothed image. A graded backlight does not change it, and an edge (one side dark)
 /// does not answer it, so the face's own outline and a dark pole's sides are not whiskers.
 ///
-/// A whisker is accepted when its trace starts within pad_band_px of the face, leaves the face
-/// (reaches pad_band_px from it, with min_clear_length_px beyond the band where its ridge measure
+/// A whisker is accepted when its trace starts within the pad band (10 px) of the face, leaves the
+/// face (reaches the band's edge, with min_clear_length_px beyond the band where its ridge measure
 /// reads the face), is at least min_length_px long,
 /// is as faint as a hair (max_contrast: a thin rod of the apparatus is not a whisker), and does
 /// not run along a longer one.
@@ -31,34 +31,25 @@ const char* to_string(FaceSide side);
 std::optional<FaceSide> face_side_from_string(const std::string& name);
 
 struct WhiskerDetectionOptions {
+  /// The detection's scales, thresholds and bridges that no user set (the smoothing, the ridge
+  /// measure's side distance, the noise multiples of the thresholds, the pad band, the smoothing
+  /// residual, ...) are fixed in detection.cpp (DetectionConstants), each with the measurement
+  /// behind it; the thresholds follow the contrast map's measured noise. What is left here is
+  /// what a user chooses (face side, shortest whisker, opt-in methods) or has been set by tests
+  /// and tools to compare methods.
   FaceSide face = FaceSide::kAuto;
-  /// Gaussian smoothing before the ridge contrast is read, pixels, > 0.
-  double smoothing_px = 1.0;
-  /// Scale of the Hessian that gives the ridge direction, pixels, > 0.
-  double orientation_scale_px = 1.5;
-  /// The ridge contrast is averaged along the ridge over ±this many pixels, ≥ 0.
-  int contrast_averaging_px = 3;
-  /// ... and then smoothed by a Gaussian of this σ, pixels, ≥ 0 (0: not smoothed).
-  double contrast_smoothing_px = 1.0;
-  /// Distance of the side samples from the ridge centre, pixels, ≥ 1.
-  int surround_px = 3;
-  /// A seed's ridge contrast, per cent of the backlight, > 0.
+  /// A seed's ridge contrast, per cent of the backlight, > 0 (raised to 4× the contrast map's
+  /// measured noise).
   double seed_contrast = 1.0;
-  /// A trace is a whisker only if its median contrast is at most this (per cent, in the
-  /// averaged map): a backlit hair is faint, a rod of the apparatus is not.
-  double max_contrast = 7.0;
-  /// Tracing goes on while the contrast (per cent) is at least this, > 0.
+  /// Tracing goes on while the contrast (per cent) is at least this, > 0 (raised to 2.5× the
+  /// contrast map's measured noise).
   double follow_contrast = 0.5;
-  /// The thresholds above are raised to these multiples of the contrast map's own noise (its
-  /// robust σ over the backlight), so that noise is neither seeded nor followed, ≥ 0.
-  double seed_noise_factor = 4.0;
-  double follow_noise_factor = 2.5;
   /// A trace ends where it turns by more than this over 12 px, degrees, in (0, 180): a whisker
   /// (radius of curvature ≥ 25 px) turns less.
   double max_turn_deg = 30.0;
   /// Steps below follow_contrast bridged before a trace ends (a crossing, a faint stretch), ≥ 0.
   int max_gap_px = 12;
-  /// ... while the trace heads towards the face, at least surround_px + 1 px clear of a dark
+  /// ... while the trace heads towards the face, at least 4 px clear of a dark
   /// region (the contrast map's side samples off it), ≥ max_gap_px. Shared video, frame 0: the
   /// faint whisker beside the longest fades below follow_contrast over 15 px, 50-65 px from the
   /// face; its trace from the tip reaches the face with 16 (16-20 find the same whiskers). Nearer
@@ -66,35 +57,31 @@ struct WhiskerDetectionOptions {
   int max_gap_towards_face_px = 16;
   /// Within this distance of the face, where whiskers converge on the pad, a step whose ridge
   /// contrast falls below follow_contrast reads it again with each side the brighter of the
-  /// samples 2 px and surround_px out (the gap before a neighbour 3-4 px away, where the sample
-  /// surround_px out falls on the neighbour's shoulder), pixels, ≥ 0 (0: not read; the map is not
+  /// samples 2 px and 3 px out (the gap before a neighbour 3-4 px away, where the sample
+  /// 3 px out falls on the neighbour's shoulder), pixels, ≥ 0 (0: not read; the map is not
   /// computed; it costs detection 1.30x). Shared video, frame 0: the dense cluster's second
   /// whisker is traced to the face (6 whiskers found instead of 5); farther out, on the rendered
   /// pads' crossing pairs, it let traces run on along the other whisker (docs/tracker.md).
   double near_follow_px = 40.0;
   /// The trace a whisker is reported by: a least-squares polynomial of this degree in its arc
   /// length (0: the raw trace, re-centred step by step on a noisy ridge), fitted to the points
-  /// farther than surround_px + smoothing_clear_px from the face's dark mask and extended along its
-  /// tangent to the face's edge, [0, 6]; pixels, ≥ 0. A trace the polynomial misses by more
-  /// than smoothing_max_residual_px is not one whisker and is dropped, pixels, > 0.
+  /// farther than 11 px from the face's dark mask and extended along its
+  /// tangent to the face's edge, [0, 6]. A trace the polynomial misses by more
+  /// than 1.5 px is not one whisker and is dropped.
   int smoothing_degree = 3;
-  double smoothing_clear_px = 8.0;
-  double smoothing_max_residual_px = 1.5;
   /// Repair such traces instead: cut one at its worst point and fit it again while min_length_px
   /// remain; extend one that does not reach the face (cut there, or ending on a converging
   /// neighbour's ridge, or whose nearer end is a tip beside the cheek) along its tangent to the
-  /// face over at most max_extension_px, on a ridge or a dark band, pixels; keep an extended one
-  /// only when its follicle lies within pad_extent_px of one a trace reached by itself. Off by
+  /// face over at most 25 px, on a ridge or a dark band, pixels; keep an extended one
+  /// only when its follicle lies within 30 px of one a trace reached by itself. Off by
   /// default: on the shared video it finds more whiskers (frame 0: 6 against 5, the peer 7), and
   /// tracked with detection on every frame they lie on a ridge on 95.3-95.9 % of all
   /// whisker-frames (the video and its mirror images, brightest-sides measure) against 97.9-98.0 %
   /// by default, lost 50-60 against 18 (docs/tracker.md).
   bool repair_traces = false;
-  double max_extension_px = 25.0;
-  double pad_extent_px = 30.0;
-  /// A trace whose two ends both lie within 2 pad_band_px of the face (a whisker whose tip lies
-  /// over the cheek while its follicle end stops short of the pad, among its neighbours) takes as
-  /// its follicle the end nearer the pad (the median of the follicles the other traces reached),
+  /// A trace whose two ends both lie within 20 px (2 pad bands) of the face (a whisker whose tip
+  /// lies over the cheek while its follicle end stops short of the pad, among its neighbours) takes
+  /// as its follicle the end nearer the pad (the median of the follicles the other traces reached),
   /// extended along its tangent to the face as above. Otherwise the end nearer the face is the
   /// follicle, and a tip on the cheek was reported as one (shared video: on 12 of 30 sampled
   /// frames; with this, 3). On the video and its three mirror images: on a ridge 95.2 -> 95.6 %
@@ -102,8 +89,8 @@ struct WhiskerDetectionOptions {
   bool orient_by_pad = true;
   /// Shortest whisker reported, pixels.
   double min_length_px = 40.0;
-  /// A whisker leaves the face: a trace with less than this length farther than surround_px +
-  /// smoothing_clear_px from the face (where smooth_trace can fit it; nearer, a side sample of
+  /// A whisker leaves the face: a trace with less than this length farther than 11 px
+  /// from the face (where smooth_trace can fit it; nearer, a side sample of
   /// the ridge measure falls on the face) is not reported, pixels, ≥ 0 (0: not tested; only with
   /// smoothing_degree > 0). Shared video, frame 35: a 34-point trace zig-zagging along the
   /// cheek's edge across the whiskers leaving it, never more than 14 px from the face; a whisker
@@ -112,15 +99,8 @@ struct WhiskerDetectionOptions {
   /// The face and other objects: smoothed intensity below this fraction of the backlight, (0, 1).
   double dark_fraction = 0.35;
   /// Objects a whisker can touch (object_distance): lightly smoothed intensity below this
-  /// fraction of the backlight, in regions that come no nearer the face than 2 pad_band_px, (0, 1).
+  /// fraction of the backlight, in regions that come no nearer the face than 20 px, (0, 1).
   double object_fraction = 0.4;
-  /// Seeds lie within this distance of the face's edge, pixels, > 1.
-  double pad_band_px = 10.0;
-  /// A trace whose points lie within this of a longer whisker over most of its length is that
-  /// whisker, pixels, > 0.
-  double min_separation_px = 2.0;
-  /// At most this many whiskers are reported (the longest), ≥ 1.
-  int max_whiskers = 64;
   /// Keep the traces that were not accepted, with the reason (WhiskerDetection::rejected): for a
   /// user asking why a whisker was not found, and for an overlay.
   bool keep_rejected = false;

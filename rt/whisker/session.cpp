@@ -288,8 +288,8 @@ void WhiskerSession::pammer(int w, const WhiskerReadout& readout, const WhiskerC
   const double dk =
       ro.physics.si() ? readout.delta_curvature * ro.physics.mm_per_px : readout.delta_curvature;
   const double window_centre_px = 0.5 * (ro.curvature_from_px + ro.curvature_to_px);
-  const double h = options_.tracker.section_height_px;
-  double EI = options_.tracker.young_modulus * h * h * h / 12.0;
+  const double h = WhiskerTrackerOptions::kModelSectionHeightPx;
+  double EI = WhiskerTrackerOptions::kModelYoungModulus * h * h * h / 12.0;
   if (ro.physics.si()) {
     const double m_per_px = ro.physics.mm_per_px * 1e-3;
     EI = ro.physics

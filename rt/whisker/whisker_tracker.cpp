@@ -62,6 +62,38 @@ Eigen::Matrix2Xd resample(const std::vector<Eigen::Vector2d>& pts, int elements)
   return nodes;
 }
 
+// The tracker's fixed sizes, distances and fractions (once WhiskerTrackerOptions fields that no
+// tool, test or user set; issue 48 counts every option a user could tune), with the reason for
+// each value.
+struct TrackerConstants {
+  // Elements per whisker: its length / element_length_px, within [min_elements, max_elements]
+  // (12 px: the search lines of an element see its curvature; 16 elements keep ten whiskers
+  // within the latency budget).
+  double element_length_px = 12.0;
+  int min_elements = 4;
+  int max_elements = 16;
+  // associate(): the follicle distance and the angle between first directions that cost as much
+  // as leaving a whisker unmatched (a pair is taken below both in quadrature), pixels and
+  // degrees; the largest motion of the pad between the whiskers' last fits and the detection,
+  // pixels; and how near a fit's nodes must lie to its detection to be kept, pixels.
+  double associate_follicle_px = 10.0;
+  double associate_angle_deg = 30.0;
+  double reacquire_radius_px = 30.0;
+  double associate_on_px = 3.0;
+  // A detection shorter than this fraction of a whisker's length places a whisker whose refit
+  // failed only as lost (its outer nodes would be guessed) and does not refit a stray.
+  double associate_cover_fraction = 0.6;
+  // A kept fit with fewer than this fraction of its nodes on a detection that covers it is
+  // fitted again from the detection, and replaced when the refit stays on it (a pole-pressed
+  // whisker's fit had stayed ok with its far half 28 px off).
+  double associate_stray_fraction = 0.8;
+  // One ridge, one whisker: two fits within claim_px of each other over more than
+  // claim_fraction of a fit's nodes share a ridge (the header comment of WhiskerTracker).
+  double claim_px = 1.5;
+  double claim_fraction = 0.5;
+};
+constexpr TrackerConstants kFixed{};
+
 }  // namespace
 
 TrackerOptions WhiskerTrackerOptions::default_tracker_options() {
@@ -130,44 +162,15 @@ TrackerOptions WhiskerTrackerOptions::default_tracker_options() {
 
 std::optional<std::string> WhiskerTrackerOptions::validate() const {
   if (auto err = tracker.validate()) return "whisker tracker: " + *err;
-  if (!(element_length_px > 0.0)) {
-    return field_error("element_length_px", element_length_px, "must be > 0");
-  }
-  if (min_elements < 1) return field_error("min_elements", min_elements, "must be >= 1");
-  if (max_elements < min_elements) {
-    return field_error("max_elements", max_elements, "must be >= min_elements");
-  }
-  if (!(young_modulus > 0.0)) return field_error("young_modulus", young_modulus, "must be > 0");
-  if (!(section_height_px > 0.0)) {
-    return field_error("section_height_px", section_height_px, "must be > 0");
-  }
   if (!(max_jump_px > 0.0)) return field_error("max_jump_px", max_jump_px, "must be > 0");
-  if (!(claim_px > 0.0)) return field_error("claim_px", claim_px, "must be > 0");
-  if (!(associate_follicle_px > 0.0))
-    return field_error("associate_follicle_px", associate_follicle_px, "must be > 0");
-  if (!(associate_angle_deg > 0.0))
-    return field_error("associate_angle_deg", associate_angle_deg, "must be > 0");
   if (!(associate_home_px >= 0.0))
     return field_error("associate_home_px", associate_home_px, "must be >= 0");
   if (!(associate_contrast_ratio == 0.0 || associate_contrast_ratio > 1.0)) {
     return field_error("associate_contrast_ratio", associate_contrast_ratio, "must be 0 or > 1");
   }
-  if (!(reacquire_radius_px > 0.0))
-    return field_error("reacquire_radius_px", reacquire_radius_px, "must be > 0");
   if (!(associate_min_length_fraction >= 0.0 && associate_min_length_fraction <= 1.0)) {
     return field_error("associate_min_length_fraction", associate_min_length_fraction,
                        "must be in [0, 1]");
-  }
-  if (!(associate_cover_fraction >= 0.0 && associate_cover_fraction <= 1.0)) {
-    return field_error("associate_cover_fraction", associate_cover_fraction, "must be in [0, 1]");
-  }
-  if (!(associate_stray_fraction >= 0.0 && associate_stray_fraction <= 1.0)) {
-    return field_error("associate_stray_fraction", associate_stray_fraction, "must be in [0, 1]");
-  }
-  if (!(associate_on_px > 0.0))
-    return field_error("associate_on_px", associate_on_px, "must be > 0");
-  if (!(claim_fraction > 0.0 && claim_fraction <= 1.0)) {
-    return field_error("claim_fraction", claim_fraction, "must be in (0, 1]");
   }
   if (!(held_ridge_px >= 0.0)) {
     return field_error("held_ridge_px", held_ridge_px, "must be >= 0");
@@ -178,6 +181,7 @@ std::optional<std::string> WhiskerTrackerOptions::validate() const {
   if (!(follicle_order_px >= 0.0)) {
     return field_error("follicle_order_px", follicle_order_px, "must be >= 0");
   }
+
   return std::nullopt;
 }
 
@@ -189,8 +193,8 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
     return;
   }
   common::BeamMaterial material;
-  const double h = options_.section_height_px;
-  material.E = options_.young_modulus;
+  const double h = WhiskerTrackerOptions::kModelSectionHeightPx;
+  material.E = WhiskerTrackerOptions::kModelYoungModulus;
   material.G = material.E / 2.6;
   material.A = h;
   material.I = h * h * h / 12.0;
@@ -205,8 +209,8 @@ WhiskerTracker::WhiskerTracker(const std::vector<std::vector<Eigen::Vector2d>>& 
       return;
     }
     const int elements =
-        std::clamp(static_cast<int>(std::lround(length / options_.element_length_px)),
-                   options_.min_elements, options_.max_elements);
+        std::clamp(static_cast<int>(std::lround(length / kFixed.element_length_px)),
+                   kFixed.min_elements, kFixed.max_elements);
     trackers_.emplace_back(common::BeamDescription::uniform(resample(pts, elements), material),
                            options_.tracker);
     if (!trackers_.back().valid()) {
@@ -245,11 +249,11 @@ bool WhiskerTracker::mostly_near(int a, int b) const {
   // first nodes).
   const Tracker& ta = trackers_[a];
   const Tracker& tb = trackers_[b];
-  const double limit_sq = options_.claim_px * options_.claim_px;
-  const Eigen::Vector2d widen = Eigen::Vector2d::Constant(0.5 * options_.claim_px);
+  const double limit_sq = kFixed.claim_px * kFixed.claim_px;
+  const Eigen::Vector2d widen = Eigen::Vector2d::Constant(0.5 * kFixed.claim_px);
   const Eigen::AlignedBox2d reach(boxes_[b].min() - widen, boxes_[b].max() + widen);
   const int n = ta.num_nodes();
-  const double needed = options_.claim_fraction * n;  // near must exceed this
+  const double needed = kFixed.claim_fraction * n;  // near must exceed this
   int near = 0;
   for (int i = 0; i < n; ++i) {
     if (near + (n - i) <= needed) return false;  // even all the rest would not be enough
@@ -267,7 +271,7 @@ bool WhiskerTracker::mostly_near(int a, int b) const {
 
 double WhiskerTracker::fraction_near(const Eigen::Matrix2Xd& points, int b) const {
   const Tracker& tb = trackers_[b];
-  const double limit_sq = options_.claim_px * options_.claim_px;
+  const double limit_sq = kFixed.claim_px * kFixed.claim_px;
   int near = 0;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     double best = std::numeric_limits<double>::infinity();
@@ -285,7 +289,7 @@ void WhiskerTracker::update_box(int w) noexcept {
   Eigen::AlignedBox2d box;
   box.setEmpty();
   for (int i = 0; i < t.num_nodes(); ++i) box.extend(t.node_position(i));
-  const Eigen::Vector2d pad = Eigen::Vector2d::Constant(0.5 * options_.claim_px);
+  const Eigen::Vector2d pad = Eigen::Vector2d::Constant(0.5 * kFixed.claim_px);
   boxes_[w] = Eigen::AlignedBox2d(box.min() - pad, box.max() + pad);
 }
 
@@ -350,7 +354,7 @@ double WhiskerTracker::rest_length(int w) const {
 }
 
 bool WhiskerTracker::runs_along(int w, const std::vector<Eigen::Vector2d>& pts) const {
-  return fraction_along(w, pts) > options_.claim_fraction;
+  return fraction_along(w, pts) > kFixed.claim_fraction;
 }
 
 double WhiskerTracker::fraction_along(int w, const std::vector<Eigen::Vector2d>& pts) const {
@@ -358,7 +362,7 @@ double WhiskerTracker::fraction_along(int w, const std::vector<Eigen::Vector2d>&
   // curve.
   const Tracker& t = trackers_[w];
   const double length = arc_lengths(pts).back();
-  const double limit_sq = options_.associate_on_px * options_.associate_on_px;
+  const double limit_sq = kFixed.associate_on_px * kFixed.associate_on_px;
   double s = 0.0;
   int near = 0, considered = 0;
   for (int i = 0; i < t.num_nodes(); ++i) {
@@ -513,8 +517,8 @@ std::vector<int> WhiskerTracker::match_detections(
   const std::vector<Eigen::Vector2d>& fw = anchor_follicle_;
   const std::vector<Eigen::Vector2d>& dw = anchor_direction_;
   // cost(i, k): whisker order_w[i] against detection order_d[k] under a common shift of the pad.
-  const double fs = options_.associate_follicle_px;
-  const double as = options_.associate_angle_deg * M_PI / 180.0;
+  const double fs = kFixed.associate_follicle_px;
+  const double as = kFixed.associate_angle_deg * M_PI / 180.0;
   std::vector<double> angle(static_cast<std::size_t>(n) * m);
   for (int i = 0; i < n; ++i) {
     const int w = order_w[i];
@@ -610,7 +614,7 @@ std::vector<int> WhiskerTracker::match_detections(
     for (int k = 0; k < m; ++k) {
       if (angle[i * m + k] > as) continue;
       const Eigen::Vector2d shift = detected[order_d[k]].front() - fw[order_w[i]];
-      if (shift.norm() > options_.reacquire_radius_px) continue;
+      if (shift.norm() > kFixed.reacquire_radius_px) continue;
       const double total = solve(shift);
       if (total < best_total - 1e-12) {
         best_total = total;
@@ -638,7 +642,7 @@ std::vector<int> WhiskerTracker::match_detections(
 
 bool WhiskerTracker::on_detection(int w, const std::vector<Eigen::Vector2d>& pts) const {
   return runs_along(w, pts) &&
-         (trackers_[w].node_position(0) - pts.front()).norm() <= options_.associate_on_px;
+         (trackers_[w].node_position(0) - pts.front()).norm() <= kFixed.associate_on_px;
 }
 
 void WhiskerTracker::take_detection(int w, const ImageView& frame,
@@ -648,7 +652,7 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
   anchor_direction_[w] = direction_at_start(pts, first_element_length(w));
   WhiskerFrame& r = results_[w];
   const Eigen::Matrix2Xd nodes = nodes_along(w, pts);
-  const bool covers = detected_length >= options_.associate_cover_fraction * rest_length(w);
+  const bool covers = detected_length >= kFixed.associate_cover_fraction * rest_length(w);
   // Restarts the whisker on its detection and fits it to the frame again: whether the fit stayed
   // on the detection.
   auto refit = [&]() {
@@ -661,7 +665,7 @@ void WhiskerTracker::take_detection(int w, const ImageView& frame,
     // A kept fit that strays from a detection covering its whisker is tried again from the
     // detection; the refit replaces it if it stays on the detection, else the whisker is placed
     // on the detection without a fit (associate_place_strays) or the stray is kept.
-    if (!covers || fraction_along(w, pts) >= options_.associate_stray_fraction) return;
+    if (!covers || fraction_along(w, pts) >= kFixed.associate_stray_fraction) return;
     if (!options_.associate_place_strays) {
       const Tracker kept = trackers_[w];
       const WhiskerFrame kept_result = r;

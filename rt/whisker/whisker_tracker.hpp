@@ -10,7 +10,7 @@
 /// pole's sides answer.
 ///
 /// A ridge is one whisker's: when a fit ends running along a neighbour's curve (within
-/// claim_px over more than claim_fraction of its nodes), the whisker that moved more this frame
+/// 1.5 px over more than half of its nodes), the whisker that moved more this frame
 /// has jumped: its fit is discarded (Tracker::reject_last_frame) and it is reported lost for the
 /// frame, so identities do not swap where whiskers cross or run side by side. Before it comes to
 /// that, whiskers are fitted brightest first, and each fit's search leaves out the ridges the
@@ -30,14 +30,11 @@ namespace sinew::rt {
 struct WhiskerTrackerOptions {
   /// Options of every whisker's tracker; the defaults below suit a faint whisker on a backlight.
   TrackerOptions tracker = default_tracker_options();
-  /// Elements per whisker: its length / element_length_px, within [min_elements, max_elements].
-  double element_length_px = 12.0;
-  int min_elements = 4;
-  int max_elements = 16;
   /// A whisker's section in pixel units (E, and the width h of a rectangular section of depth 1):
-  /// only ratios matter to the fit; forces in physical units are the read-out's business.
-  double young_modulus = 1000.0;
-  double section_height_px = 2.0;
+  /// only ratios matter to the fit; forces in physical units are the read-out's business. Not
+  /// options (nothing the fit does depends on them).
+  static constexpr double kModelYoungModulus = 1000.0;
+  static constexpr double kModelSectionHeightPx = 2.0;
   /// A fit whose node moved more than this in one frame has slid or jumped off its whisker (a
   /// free beam is anchored by nothing but its ridge): it is discarded and the frame is lost,
   /// pixels, > 0. Should exceed the true motion per frame (the search reaches
@@ -49,31 +46,17 @@ struct WhiskerTrackerOptions {
   /// with 3×, 2534 with (frames lost + 1)×: a larger allowance lets fits through that slid along
   /// the whisker.)
   double max_jump_px = 20.0;
-  /// See associate(): the follicle distance and the angle between first directions that cost
-  /// as much as leaving a whisker unmatched (a pair is taken below both in quadrature), the
-  /// largest motion of the pad between the whiskers' last fits and the detection, pixels and
-  /// degrees, > 0; and how near a fit's nodes must lie to its detection to be kept, pixels.
-  double associate_follicle_px = 10.0;
-  double associate_angle_deg = 30.0;
   /// Identities do not walk along the pad: a detection also costs by its distance from where the
   /// whisker's first follicle lies now (the first follicles moved rigidly onto the anchors, as the
   /// head moves), as much as leaving it unmatched at this distance, pixels (0: not used).
   double associate_home_px = 0.0;
-  double reacquire_radius_px = 30.0;
-  double associate_on_px = 3.0;
-  /// A detection shorter than this fraction of a whisker's length is not matched to it, and one
-  /// shorter than associate_cover_fraction of it places a whisker whose refit failed only as
-  /// lost (its outer nodes would be guessed) and does not refit a stray, [0, 1]. 0.6 (was 0.8):
-  /// a 30 fps frame's detection often ends early on a blurred whisker; the shared real video and
-  /// its three mirror images lose 57-72 whisker-frames instead of 72-89 and have 90.9-92.5 % of
-  /// all on a ridge instead of 89.9-91.4 (0.5 the same; the rendered pads do not change).
+  /// A detection shorter than this fraction of a whisker's length is not matched to it, [0, 1].
+  /// 0.4 (was 0.8): a 30 fps frame's detection often ends early on a blurred whisker.
   double associate_min_length_fraction = 0.4;
-  double associate_cover_fraction = 0.6;
-  /// A kept fit with fewer than this fraction of its nodes on a detection that covers it is
-  /// fitted again from the detection, and replaced when the refit stays on it, [0, 1] (0: never).
-  /// A pole-pressed whisker's fit had stayed ok with its far half 28 px off.
-  double associate_stray_fraction = 0.8;
-  /// ... and when that refit leaves the detection too, the whisker is placed on the detection,
+  /// A kept fit that strays from a detection covering its whisker (fewer than 80 % of its nodes
+  /// within 3 px of it) is fitted again from the detection, and replaced when the refit stays on
+  /// it (a pole-pressed whisker's fit had stayed ok with its far half 28 px off); when that refit
+  /// leaves the detection too, the whisker is placed on the detection,
   /// reported not converged, instead of keeping the stray. (Shared video: the leftmost whisker
   /// of the dense cluster had slid 13 px along the face and into the fur, and stayed there `ok`
   /// for 40 frames beside its own detection; see docs/tracker.md.)
@@ -86,7 +69,7 @@ struct WhiskerTrackerOptions {
   bool associate_narrow_refit = true;
   /// A whisker's darkness is its own: the matching also costs a detection by the ratio of its
   /// ridge contrast (DetectedWhisker::contrast_percent) to the whisker's (the geometric running
-  /// mean over its matched detections), as much as one at associate_follicle_px when they differ
+  /// mean over its matched detections), as much as one 10 px away when they differ
   /// by this factor, > 1 (0: not used; nor when associate() is given no contrasts). Where the
   /// detection of a faint whisker in a dense cluster is missing, the darker neighbour's is not
   /// taken for it and its identity does not walk (shared video: the median drift of a follicle
@@ -100,9 +83,6 @@ struct WhiskerTrackerOptions {
   /// ids swapped for good (95.0 % of all whisker-frames on a ridge, 86.0 % with an 18 px bridge
   /// in detection); matched second, 95.8 % with any bridge of 16-20 px, no swap (docs/tracker.md).
   double associate_pair_px = 3.0;
-  /// See the header comment.
-  double claim_px = 1.5;
-  double claim_fraction = 0.5;
   /// A whisker's search drops the candidates within this distance of the node polylines of the
   /// whiskers fitted (and kept) before it on the frame, brighter ones (Tracker::typical_strength)
   /// first. Pixels (0: all candidates, in whisker order). (Also refitting a fit discarded as on
@@ -167,7 +147,7 @@ class WhiskerTracker {
   /// so the matching preserves it: tracked whiskers and detections are ordered along the pad's row
   /// (the principal axis of the tracked follicles) and matched by dynamic programming, with skips
   /// on both sides, on the follicle distance and the angle between first directions under one
-  /// common shift of the pad (none, or up to reacquire_radius_px: the shift that matches best).
+  /// common shift of the pad (none, or up to 30 px: the shift that matches best).
   /// A whisker whose fit runs along its detection keeps it; a lost one, or one whose fit lies
   /// elsewhere, restarts on its detection (Tracker::restart_at) and is fitted to `frame` again.
   /// A whisker no detection matches keeps its own fit, so a faint whisker detection misses on a
@@ -187,9 +167,9 @@ class WhiskerTracker {
   double rest_length(int w) const;
   // Whisker w's nodes at its rest arc lengths along a curve, follicle first.
   Eigen::Matrix2Xd nodes_along(int w, const std::vector<Eigen::Vector2d>& pts) const;
-  // Whether whisker w's fit lies within associate_on_px of the curve along the curve's length.
+  // Whether whisker w's fit lies within 3 px of the curve along the curve's length.
   bool runs_along(int w, const std::vector<Eigen::Vector2d>& pts) const;
-  // The fraction of whisker w's nodes (up to the curve's length) within associate_on_px of it.
+  // The fraction of whisker w's nodes (up to the curve's length) within 3 px of it.
   double fraction_along(int w, const std::vector<Eigen::Vector2d>& pts) const;
   // associate() in its steps: the order-preserving matching of whiskers to the usable
   // detections `cand` (detected_length: each detection's arc length; allowed: the whiskers that
@@ -206,14 +186,14 @@ class WhiskerTracker {
   bool on_detection(int w, const std::vector<Eigen::Vector2d>& pts) const;
   void take_detection(int w, const ImageView& frame, const std::vector<Eigen::Vector2d>& pts,
                       double detected_length, WhiskerAssociation& summary);
-  // Whether more than claim_fraction of whisker a's nodes lie within claim_px of whisker b's node
-  // polyline (reads boxes_ of this frame).
+  // Whether more than half of whisker a's nodes lie within 1.5 px (the claim distance) of whisker
+  // b's node polyline (reads boxes_ of this frame).
   bool mostly_near(int a, int b) const;
   // The whisker pad's row: the principal axis of the follicles detections last confirmed.
   Eigen::Vector2d pad_axis() const noexcept;
   // See WhiskerTrackerOptions::follicle_order_px.
   void keep_follicle_order() noexcept;
-  // Fraction of the points within claim_px of whisker b's node polyline.
+  // Fraction of the points within the claim distance of whisker b's node polyline.
   double fraction_near(const Eigen::Matrix2Xd& points, int b) const;
   // boxes_[w] from whisker w's nodes now.
   void update_box(int w) noexcept;
@@ -235,10 +215,11 @@ class WhiskerTracker {
   std::vector<double> moved_px_;  // max node displacement this frame, per whisker
   std::vector<int> lost_run_;     // frames in a row each whisker has been lost
   std::vector<Eigen::VectorXd> previous_;
-  std::vector<Eigen::AlignedBox2d> boxes_;  // each fit's node bounding box, claim_px/2 wider
-  std::vector<int> order_;                  // whiskers in the order they are fitted
-  std::vector<char> fitted_;                // fitted on this frame yet
-  std::vector<int> held_;                   // gather_held: whiskers, the first held_count_ used
+  std::vector<Eigen::AlignedBox2d>
+      boxes_;                 // each fit's node bounding box, half the claim distance wider
+  std::vector<int> order_;    // whiskers in the order they are fitted
+  std::vector<char> fitted_;  // fitted on this frame yet
+  std::vector<int> held_;     // gather_held: whiskers, the first held_count_ used
   std::vector<Eigen::AlignedBox2d> held_reach_;  // ... and their boxes widened by held_ridge_px
   int held_count_ = 0;
   // Where a detection last confirmed each whisker: follicle and first direction.
