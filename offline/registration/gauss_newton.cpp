@@ -1,5 +1,6 @@
 #include "offline/registration/gauss_newton.hpp"
 
+#include <fmt/core.h>
 #include <nlopt.hpp>
 
 #include <Eigen/Geometry>
@@ -993,6 +994,19 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
     summary.final_objective = terms ? r.objective(r.s, r.x, *terms) : kInfinity;
   }
   std::tie(summary.marker_error_mean, summary.marker_error_max) = r.marker_errors(final_stage, r.x);
+  // A stall is not convergence (issue 51): the femur bent and bulged ended its ICP stage by
+  // small-decrease with the markers 19.5 mm off on average (tolerance 0.46 mm at the largest).
+  if ((termination == GaussNewtonTermination::kSmallDecrease ||
+       termination == GaussNewtonTermination::kSmallStep) &&
+      options.max_marker_error > 0.0 && summary.marker_error_mean > options.max_marker_error) {
+    summary.message = std::string("stalled: the ") + to_string(final_stage) + " stage ended by " +
+                      to_string(termination) + " with its markers on average " +
+                      fmt::format("{:.3g}", summary.marker_error_mean / options.max_marker_error) +
+                      "x the marker tolerance from their targets (largest " +
+                      fmt::format("{:.3g}", summary.marker_error_max / options.max_marker_error) +
+                      "x)";
+    termination = GaussNewtonTermination::kStalled;
+  }
   summary.termination = termination;
   summary.equilibrium_solves = r.equilibrium_solves;
   summary.seconds = seconds_before + seconds_since(run_start);

@@ -22,6 +22,8 @@ const char* to_string(GaussNewtonTermination termination) {
       return "linear-solve-failed";
     case GaussNewtonTermination::kInvalidInput:
       return "invalid-input";
+    case GaussNewtonTermination::kStalled:
+      return "stalled";
   }
   return "unknown";
 }

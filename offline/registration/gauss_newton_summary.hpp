@@ -41,6 +41,10 @@ enum class GaussNewtonTermination {
   kEquilibriumFailed,  ///< the equilibrium at the start could not be solved
   kLinearSolveFailed,  ///< tangent stiffness not positive definite, or Woodbury failed
   kInvalidInput,       ///< options, sizes, constraints (see message)
+  /// A stall, not convergence (issue 51): the last stage ended by a convergence test (small step
+  /// or small decrease) with its markers on average farther from their targets than
+  /// GaussNewtonOptions::max_marker_error allows at the largest. A failure: message says how far.
+  kStalled,
 };
 const char* to_string(GaussNewtonTermination termination);
 
@@ -58,6 +62,8 @@ struct GaussNewtonSummary {
     return termination != GaussNewtonTermination::kInvalidInput &&
            termination != GaussNewtonTermination::kEquilibriumFailed;
   }
+  /// Not usable, or a stall: the state is written but the run did not converge.
+  bool failed() const { return !usable() || termination == GaussNewtonTermination::kStalled; }
   std::string brief_report() const;
   std::string full_report() const;
 };

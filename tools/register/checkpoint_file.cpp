@@ -29,11 +29,15 @@ constexpr int kVersion = 1;
 constexpr RegistrationStage kStages[] = {
     RegistrationStage::kInitialFit, RegistrationStage::kAttachments, RegistrationStage::kLandmarks,
     RegistrationStage::kIcpMarkers};
-constexpr GaussNewtonTermination kTerminations[] = {
-    GaussNewtonTermination::kMaxIterations,     GaussNewtonTermination::kMarkerTolerance,
-    GaussNewtonTermination::kSmallStep,         GaussNewtonTermination::kSmallDecrease,
-    GaussNewtonTermination::kLineSearchFailed,  GaussNewtonTermination::kEquilibriumFailed,
-    GaussNewtonTermination::kLinearSolveFailed, GaussNewtonTermination::kInvalidInput};
+constexpr GaussNewtonTermination kTerminations[] = {GaussNewtonTermination::kMaxIterations,
+                                                    GaussNewtonTermination::kMarkerTolerance,
+                                                    GaussNewtonTermination::kSmallStep,
+                                                    GaussNewtonTermination::kSmallDecrease,
+                                                    GaussNewtonTermination::kLineSearchFailed,
+                                                    GaussNewtonTermination::kEquilibriumFailed,
+                                                    GaussNewtonTermination::kLinearSolveFailed,
+                                                    GaussNewtonTermination::kInvalidInput,
+                                                    GaussNewtonTermination::kStalled};
 
 // A checkpoint's values, read through JsonCursor (every failure names the file, the line and
 // column and the field). Doubles are hex-float strings, exact to the bit.

@@ -33,8 +33,9 @@
 // box centre at the origin, diagonal 1, unit material) so the defaults fit millimetres and metres;
 // results are mapped back to the case's units.
 // Exit status: 0 registered; 1 outputs written but the registration failed (report.json says
-// why; no result files); 2 bad input or usage (one line on stderr naming the file, nothing
-// written).
+// why; no result files), or stalled (termination "stalled": the result files are written and one
+// line on stderr says how far the markers are); 2 bad input or usage (one line on stderr naming
+// the file, nothing written).
 //
 // The registration itself is offline::register_case (offline/registration/register_case.hpp);
 // this file reads the inputs, keeps the checkpoint and writes the outputs
@@ -147,7 +148,12 @@ int run(const RunRequest& request) {
     fs::remove(checkpoint_file, ec);
   }
   for (const std::string& path : written) log.line("wrote {}", path);
-  return r.registration.summary.usable() ? 0 : 1;
+  const offline::GaussNewtonSummary& summary = r.registration.summary;
+  if (summary.usable() && summary.failed()) {
+    // A stall (issue 51): the result files are written to look at, the status says it failed.
+    std::cerr << "sinew-register: " << request.case_path << ": " << summary.message << "\n";
+  }
+  return summary.failed() ? 1 : 0;
 }
 
 // One case with its errors reported: the exit status of the tool.

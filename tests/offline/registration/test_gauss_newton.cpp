@@ -485,6 +485,49 @@ TEST(GaussNewton, IcpWeightRampWeighsTheFirstIterationsLessAndStopsOnlyAtFullWei
   EXPECT_TRUE(bad.validate().has_value());
 }
 
+// A stall is not convergence (issue 51): a stage that stops by its small-decrease (or small-step)
+// test with the markers on average farther than the marker tolerance ends kStalled, a failure,
+// with a one-line message; without a tolerance (0) the same run ends kSmallDecrease as before.
+TEST(GaussNewton, SmallDecreaseWithMarkersFarFromTheToleranceIsAStall) {
+  Bar bar = make_bar();
+  ASSERT_TRUE(bar.energy.has_value());
+  const Truth truth = make_truth(bar, 5);
+  RegistrationConstraints constraints;
+  constraints.attachments = bar.attachments;
+  for (std::size_t i = 0; i < 12; ++i) {
+    constraints.icp_markers.push_back(truth.x.segment<3>(3 * truth.candidates[i]));
+  }
+  auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
+  ASSERT_TRUE(surface_query.has_value());
+  BoundaryClosestPoint closest(*surface_query);
+  GaussNewtonOptions options;
+  options.max_iterations_per_stage = 8;
+  // Any iteration that lowers Φ by less than 90 % ends the stage by small-decrease.
+  options.relative_decrease_tolerance = 0.9;
+  const RegistrationResult plain = register_attached(*bar.energy, constraints, &closest, options);
+  ASSERT_TRUE(plain.summary.usable()) << plain.summary.full_report();
+  EXPECT_EQ(plain.summary.termination, GaussNewtonTermination::kSmallDecrease)
+      << plain.summary.full_report();
+  EXPECT_FALSE(plain.summary.failed());
+  // The same run with a tolerance far below where it stopped: a stall.
+  options.max_marker_error = 1e-3 * plain.summary.marker_error_mean;
+  const RegistrationResult stalled = register_attached(*bar.energy, constraints, &closest, options);
+  EXPECT_EQ(stalled.summary.termination, GaussNewtonTermination::kStalled)
+      << stalled.summary.full_report();
+  EXPECT_TRUE(stalled.summary.failed());
+  EXPECT_TRUE(stalled.summary.usable());  // the state is there to look at
+  EXPECT_EQ(std::string(to_string(stalled.summary.termination)), "stalled");
+  EXPECT_NE(stalled.summary.message.find("stalled: the icp stage ended by small-decrease"),
+            std::string::npos)
+      << stalled.summary.message;
+  EXPECT_EQ(stalled.summary.message.find('\n'), std::string::npos);
+  // With a tolerance the markers meet on average, not a stall.
+  options.max_marker_error = 10.0 * plain.summary.marker_error_mean;
+  const RegistrationResult met = register_attached(*bar.energy, constraints, &closest, options);
+  EXPECT_NE(met.summary.termination, GaussNewtonTermination::kStalled);
+  EXPECT_FALSE(met.summary.failed());
+}
+
 // Attachments far from the template (the far end of a bar twisted by 135° about its axis, as in
 // the Botsch–Sorkine benchmark): the direct first equilibrium fails, the load-stepped one
 // succeeds.
