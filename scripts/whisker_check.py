@@ -16,8 +16,9 @@ residuals do not vouch for themselves. For every whisker-frame reported "ok" or 
   (off its whisker, onto the backlight or a neighbour): the fraction of those that pass is the
   measure's own false-positive rate, printed beside the result;
 - it is on a pole when more than a third of its samples lie inside a dark region (the frame
-  smoothed with a Gaussian of 4 px below 0.35 of its 95th percentile) that does not touch the
-  face's border.
+  smoothed with a Gaussian of 4 px below 0.35 of the way from its 1st percentile, the face's
+  level, to its 95th, the backlight's: in a video of low contrast the face is far above black)
+  that does not touch the face's border.
 
 Beside it, the same figures with each side taken as the brightest sample 2-5 px out instead of the
 mean of 4 and 5: where whiskers run 3-5 px apart (a dense pad near the face) the samples 4-5 px
@@ -179,7 +180,8 @@ def main():
         grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
         g = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 1.0)
         coarse = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 4.0)
-        dark = (coarse < 0.35 * np.percentile(coarse, 95)).astype(np.uint8)
+        low, high = np.percentile(coarse, [1, 95])
+        dark = (coarse < low + 0.35 * (high - low)).astype(np.uint8)
         count, labels = cv2.connectedComponents(dark, connectivity=8)
         border = {"left": labels[:, 0], "right": labels[:, -1], "top": labels[0, :],
                   "bottom": labels[-1, :]}.get(face, labels[:, 0])

@@ -51,6 +51,13 @@ struct DetectionConstants {
   double min_separation_px = 2.0;
   // At most this many whiskers are reported (the longest).
   int max_whiskers = 64;
+  // The face's contrast (backlight - face level) / backlight at and above which the thresholds in
+  // per cent of the backlight (seed, follow, max_contrast) hold as
+  // set (the rendered pads measure 0.92, the shared video 0.99, sinew-synth's pads 0.88). Below it
+  // they scale with it: a video of half the contrast has whiskers and rods of half the contrast
+  // (the shared video with its contrast halved: rods of 4.5-7 %, which max_contrast's 7 % took
+  // for whiskers).
+  double reference_face_contrast = 0.85;
 };
 constexpr DetectionConstants kFixed{};
 
@@ -85,6 +92,7 @@ struct Maps {
   cv::Mat distance;       // CV_32F distance from the face, pixels
   double noise = 0.0;     // robust σ of the contrast map over the backlight, per cent
   double seed = 0.0, follow = 0.0;  // thresholds in force: the options' or the noise's
+  double contrast_scale = 1.0;      // contrast_scale(backlight, dark level)
 };
 
 // Ridge normal at (x, y): direction of the largest eigenvalue of the Hessian there.
@@ -146,7 +154,7 @@ float face_distance(const Maps& m, const Eigen::Vector2d& p) {
 }
 
 Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSide* side,
-                double* backlight) {
+                double* backlight, double* dark_level) {
   Maps m;
   const cv::Mat grey(frame.height, frame.width, CV_8UC1, const_cast<std::uint8_t*>(frame.data),
                      static_cast<std::size_t>(frame.stride));
@@ -158,13 +166,19 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
   cv::Sobel(hs, dxx, CV_32F, 2, 0, 3);
   cv::Sobel(hs, dyy, CV_32F, 0, 2, 3);
   cv::Sobel(hs, dxy, CV_32F, 1, 1, 3);
-  // Dark regions: heavily smoothed (whiskers vanish), below a fraction of the backlight.
+  // Dark regions: heavily smoothed (whiskers vanish), below dark_threshold(dark_fraction): a
+  // fraction of the backlight (the 95th percentile) while the face (its darkest 1 %) stands out
+  // from it as much as usual, higher where it stands out less (a lit face, a video of low
+  // contrast: the shared video with its contrast halved had no face below 0.35 of the backlight;
+  // docs/whisker_benchmark.md).
   cv::Mat coarse;
   cv::GaussianBlur(f, coarse, cv::Size(), 4.0);
   std::vector<float> values(coarse.begin<float>(), coarse.end<float>());
   std::nth_element(values.begin(), values.begin() + values.size() * 95 / 100, values.end());
   *backlight = values[values.size() * 95 / 100];
-  cv::compare(coarse, o.dark_fraction * *backlight, m.dark, cv::CMP_LT);
+  std::nth_element(values.begin(), values.begin() + values.size() / 100, values.end());
+  *dark_level = std::min<double>(values[values.size() / 100], *backlight);
+  cv::compare(coarse, dark_threshold(o.dark_fraction, *backlight, *dark_level), m.dark, cv::CMP_LT);
 
   // The face: the dark components touching the chosen border.
   cv::Mat labels;
@@ -289,8 +303,9 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
                      background.end());
     m.noise = 1.4826 * background[background.size() / 2];
   }
-  m.seed = std::max(o.seed_contrast, kFixed.seed_noise_factor * m.noise);
-  m.follow = std::max(o.follow_contrast, kFixed.follow_noise_factor * m.noise);
+  m.contrast_scale = contrast_scale(*backlight, *dark_level);
+  m.seed = std::max(o.seed_contrast * m.contrast_scale, kFixed.seed_noise_factor * m.noise);
+  m.follow = std::max(o.follow_contrast * m.contrast_scale, kFixed.follow_noise_factor * m.noise);
   return m;
 }
 
@@ -619,6 +634,16 @@ std::optional<FaceSide> face_side_from_string(const std::string& name) {
   return std::nullopt;
 }
 
+double contrast_scale(double backlight, double dark_level) {
+  if (!(backlight > 0.0)) return 1.0;
+  const double face_contrast = (backlight - dark_level) / backlight;
+  return std::clamp(face_contrast / kFixed.reference_face_contrast, 0.05, 1.0);
+}
+
+double dark_threshold(double fraction, double backlight, double dark_level) {
+  return backlight * (1.0 - (1.0 - fraction) * contrast_scale(backlight, dark_level));
+}
+
 std::optional<std::string> WhiskerDetectionOptions::validate() const {
   if (!(seed_contrast > 0.0)) return field_error("seed_contrast", seed_contrast, "must be > 0");
   if (!(follow_contrast > 0.0)) {
@@ -733,7 +758,7 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
       // trace too short for smooth_trace's fit keeps its raw points (shared video, frame 39: a
       // trace from a whisker's middle that turned back along the cheek, 75 degrees).
       reject(c.points, "not smooth");
-    } else if (c.contrast_percent > kFixed.max_contrast) {
+    } else if (c.contrast_percent > kFixed.max_contrast * m.contrast_scale) {
       reject(c.points, "too dark");
     } else if (c.length_px < o.min_length_px) {
       reject(c.points, "too short");
@@ -910,7 +935,8 @@ void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetect
   // shadows are darker at this sharpness: a tip over the cheek is no contact; shared video, a
   // shadow 5-10 px off the cheek read as 16 contact frames of a whisker that touches nothing).
   cv::Mat objects, near_face, object_labels;
-  cv::compare(m.smooth, o.object_fraction * result.backlight, objects, cv::CMP_LT);
+  cv::compare(m.smooth, dark_threshold(o.object_fraction, result.backlight, result.dark_level),
+              objects, cv::CMP_LT);
   const int reach = 2 * static_cast<int>(std::lround(kFixed.pad_band_px)) + 1;
   cv::dilate(m.face, near_face,
              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * reach + 1, 2 * reach + 1)));
@@ -952,7 +978,7 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     return result;
   }
   FaceSide side = o.face;
-  const Maps m = build_maps(frame, o, &side, &result.backlight);
+  const Maps m = build_maps(frame, o, &side, &result.backlight, &result.dark_level);
   result.face = side;
   result.noise_percent = m.noise;
   result.seed_contrast = m.seed;

@@ -96,10 +96,12 @@ struct WhiskerDetectionOptions {
   /// cheek's edge across the whiskers leaving it, never more than 14 px from the face; a whisker
   /// placed on it by the association was lost for the next 22 frames (docs/tracker.md).
   double min_clear_length_px = 15.0;
-  /// The face and other objects: smoothed intensity below this fraction of the backlight, (0, 1).
+  /// The face and other objects: smoothed intensity below this fraction of the backlight, raised
+  /// where the face stands out less than usual (dark_threshold), (0, 1).
   double dark_fraction = 0.35;
   /// Objects a whisker can touch (object_distance): lightly smoothed intensity below this
-  /// fraction of the backlight, in regions that come no nearer the face than 20 px, (0, 1).
+  /// fraction of the backlight (dark_threshold), in regions that come no nearer the
+  /// face than 20 px, (0, 1).
   double object_fraction = 0.4;
   /// Keep the traces that were not accepted, with the reason (WhiskerDetection::rejected): for a
   /// user asking why a whisker was not found, and for an overlay.
@@ -125,10 +127,11 @@ struct RejectedTrace {
 struct WhiskerDetection {
   std::vector<DetectedWhisker> whiskers;  ///< ordered along the face's edge
   FaceSide face = FaceSide::kAuto;        ///< the side used (resolved when kAuto was asked)
-  double backlight = 0.0;                 ///< the bright level the dark fraction is taken of
-  int seeds = 0;                          ///< ridge points that were traced
-  double noise_percent = 0.0;             ///< robust σ of the ridge contrast over the backlight
-  double seed_contrast = 0.0;             ///< the seed and follow thresholds used, per cent
+  double backlight = 0.0;      ///< the bright level (95th percentile of the frame smoothed by 4 px)
+  double dark_level = 0.0;     ///< the face's level (its 1st percentile); see dark_threshold
+  int seeds = 0;               ///< ridge points that were traced
+  double noise_percent = 0.0;  ///< robust σ of the ridge contrast over the backlight
+  double seed_contrast = 0.0;  ///< the seed and follow thresholds used, per cent
   double follow_contrast = 0.0;
   /// Distance of every pixel (row-major, the frame's width × height) to the nearest dark object
   /// that is not the face (a pole, a lick port: what a whisker can touch), pixels, capped at
@@ -137,6 +140,18 @@ struct WhiskerDetection {
   std::vector<RejectedTrace> rejected;  ///< only with keep_rejected
   std::string error;                    ///< empty on success (bad options, no face found)
 };
+
+/// How much the thresholds in per cent of the backlight (detection's seed, follow and darkest
+/// whisker contrasts) are scaled down on a video whose face
+/// stands out less from the backlight than the reference (0.85 of it): min(1, ((backlight −
+/// dark_level) / backlight) / 0.85), in [0.05, 1].
+double contrast_scale(double backlight, double dark_level);
+
+/// The grey level below which the frame smoothed by 4 px is dark (the face, a pole) for a
+/// fraction of the backlight (dark_fraction, object_fraction): backlight × (1 − (1 − fraction) ×
+/// contrast_scale): the fraction itself while the face stands out as usual, nearer the backlight
+/// where the face is lighter.
+double dark_threshold(double fraction, double backlight, double dark_level);
 
 /// Detects the whiskers of one 8-bit grey frame.
 WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& options);

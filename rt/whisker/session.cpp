@@ -58,7 +58,12 @@ std::string WhiskerSession::process(const ImageView& frame) {
     for (const auto& w : first_.whiskers) traces.push_back(w.points);
     WhiskerTrackerOptions track_options = options_.tracker;
     track_options.tracker.ridge_min_background =
-        options_.detection.dark_fraction * first_.backlight;
+        dark_threshold(options_.detection.dark_fraction, first_.backlight, first_.dark_level);
+    // The follicle's search wants the face's edge to fall by at least this per pixel (6 grey
+    // levels, set on the shared video): on a face that stands out less, the edge falls less
+    // (docs/whisker_benchmark.md).
+    track_options.tracker.dark_region_min_step *=
+        contrast_scale(first_.backlight, first_.dark_level);
     WhiskerTracker tracker(traces, track_options);
     if (!tracker.valid()) return tracker.error();
     std::vector<WhiskerReadoutModel> readouts;
