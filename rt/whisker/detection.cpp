@@ -153,6 +153,16 @@ float face_distance(const Maps& m, const Eigen::Vector2d& p) {
   return sample(m.distance, p.x(), p.y(), &v) ? v : 0.0f;
 }
 
+// The backlight's level (the 95th percentile of the frame smoothed by 4 px) and the face's (its
+// 1st percentile).
+void measure_levels(const cv::Mat& coarse, double* backlight, double* dark_level) {
+  std::vector<float> values(coarse.begin<float>(), coarse.end<float>());
+  std::nth_element(values.begin(), values.begin() + values.size() * 95 / 100, values.end());
+  *backlight = values[values.size() * 95 / 100];
+  std::nth_element(values.begin(), values.begin() + values.size() / 100, values.end());
+  *dark_level = std::min<double>(values[values.size() / 100], *backlight);
+}
+
 Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSide* side,
                 double* backlight, double* dark_level) {
   Maps m;
@@ -166,18 +176,12 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
   cv::Sobel(hs, dxx, CV_32F, 2, 0, 3);
   cv::Sobel(hs, dyy, CV_32F, 0, 2, 3);
   cv::Sobel(hs, dxy, CV_32F, 1, 1, 3);
-  // Dark regions: heavily smoothed (whiskers vanish), below dark_threshold(dark_fraction): a
-  // fraction of the backlight (the 95th percentile) while the face (its darkest 1 %) stands out
-  // from it as much as usual, higher where it stands out less (a lit face, a video of low
-  // contrast: the shared video with its contrast halved had no face below 0.35 of the backlight;
-  // docs/whisker_benchmark.md).
+  // Dark regions: heavily smoothed (whiskers vanish), below dark_threshold (higher where the
+  // face stands out less: the shared video with its contrast halved had no face below 0.35 of
+  // the backlight; docs/whisker_benchmark.md).
   cv::Mat coarse;
   cv::GaussianBlur(f, coarse, cv::Size(), 4.0);
-  std::vector<float> values(coarse.begin<float>(), coarse.end<float>());
-  std::nth_element(values.begin(), values.begin() + values.size() * 95 / 100, values.end());
-  *backlight = values[values.size() * 95 / 100];
-  std::nth_element(values.begin(), values.begin() + values.size() / 100, values.end());
-  *dark_level = std::min<double>(values[values.size() / 100], *backlight);
+  measure_levels(coarse, backlight, dark_level);
   cv::compare(coarse, dark_threshold(o.dark_fraction, *backlight, *dark_level), m.dark, cv::CMP_LT);
 
   // The face: the dark components touching the chosen border.
@@ -711,6 +715,37 @@ std::vector<Seed> find_seeds(const Maps& m) {
 // Traces every seed (strongest first) that no earlier trace claimed; the traces that start at the
 // face and leave it, light enough and long enough, are the candidates (the others go to
 // result.rejected when o.keep_rejected).
+// The length of a trace farther than surround_px + smoothing_clear_px from the face (where its
+// ridge measure does not read the face), and its farthest distance from the face.
+double clear_length(const Maps& m, const std::vector<Eigen::Vector2d>& points, float* farthest) {
+  const double clear_px = kFixed.surround_px + kFixed.smoothing_clear_px;
+  double beyond = 0.0;
+  bool previous_clear = false;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const float d = face_distance(m, points[i]);
+    *farthest = std::max(*farthest, d);
+    const bool clear = d >= clear_px;
+    if (clear && previous_clear) beyond += (points[i] - points[i - 1]).norm();
+    previous_clear = clear;
+  }
+  return beyond;
+}
+
+// The pad's middle: the coordinate-wise median of the follicles that traces reached by
+// themselves (not extended); nullopt when there are none.
+std::optional<Eigen::Vector2d> pad_centre_of(const std::vector<Candidate>& found) {
+  std::vector<double> xs, ys;
+  for (const Candidate& c : found) {
+    if (c.extended) continue;
+    xs.push_back(c.whisker.follicle.x());
+    ys.push_back(c.whisker.follicle.y());
+  }
+  if (xs.empty()) return std::nullopt;
+  std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
+  std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
+  return Eigen::Vector2d(xs[xs.size() / 2], ys[ys.size() / 2]);
+}
+
 std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions& o,
                                    const std::vector<Seed>& seeds, WhiskerDetection& result) {
   // Trace each seed not already on a traced whisker both ways along its ridge; the end nearer the
@@ -736,17 +771,8 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
     // A whisker leaves the face: it reaches pad_band_px from it, and (min_clear_length_px; 15 px
     // is the shortest stretch smooth_trace fits a line to: a shorter one kept its raw points,
     // unchecked) runs on beyond the band where its ridge measure reads the face.
-    const double clear_px = kFixed.surround_px + kFixed.smoothing_clear_px;
     float farthest = 0.0f;
-    double beyond = 0.0;
-    bool previous_clear = false;
-    for (std::size_t i = 0; i < c.points.size(); ++i) {
-      const float d = face_distance(m, c.points[i]);
-      farthest = std::max(farthest, d);
-      const bool clear = d >= clear_px;
-      if (clear && previous_clear) beyond += (c.points[i] - c.points[i - 1]).norm();
-      previous_clear = clear;
-    }
+    const double beyond = clear_length(m, c.points, &farthest);
     // The mask lies ~2 px inside the edge the follicle was refined to.
     if (face_distance(m, c.follicle) > 4.0) {
       reject(c.points, "not at the face");
@@ -854,21 +880,10 @@ std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions&
   // themselves. A deferred trace's follicle is its end nearer to it; when that end is not at the
   // face it is extended along its tangent to the face (on a ridge or a dark band; drop_off_pad
   // keeps it only on the pad).
-  std::vector<double> xs, ys;
-  for (const Candidate& c : found) {
-    if (c.extended) continue;
-    xs.push_back(c.whisker.follicle.x());
-    ys.push_back(c.whisker.follicle.y());
-  }
-  Eigen::Vector2d pad_centre = Eigen::Vector2d::Zero();
-  if (!xs.empty()) {
-    std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
-    std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
-    pad_centre = Eigen::Vector2d(xs[xs.size() / 2], ys[ys.size() / 2]);
-  }
+  const std::optional<Eigen::Vector2d> pad_centre = pad_centre_of(found);
   for (auto& [a, b] : deferred) {
-    if (!xs.empty() &&
-        (a.points.back() - pad_centre).norm() < (b.points.back() - pad_centre).norm()) {
+    if (pad_centre &&
+        (a.points.back() - *pad_centre).norm() < (b.points.back() - *pad_centre).norm()) {
       std::swap(a, b);
     }
     take(a, b, true);
