@@ -312,11 +312,14 @@ using ImageComplex = CGAL::Mesh_complex_3_in_triangulation_3<ImageTriangulation>
 
 /// The size field of TetMesherOptions::tets_across_thickness: min(largest, thickness / across),
 /// at least smallest, with the thickness at p the chord through the solid along the inward normal
-/// of the surface face closest to p (the first hit of a ray cast inwards from just inside it).
+/// of the surface face closest to p (the first hit of a ray cast inwards from just inside it);
+/// with thin_fraction > 0 only where the thickness is below thin_fraction times the surface's
+/// median thickness (TetMesherOptions::thin_fraction_of_median), largest elsewhere.
 class ThicknessSizing {
  public:
   using FT = Kernel::FT;
-  ThicknessSizing(const SurfaceMesh& surface, double largest, double smallest, double across)
+  ThicknessSizing(const SurfaceMesh& surface, double largest, double smallest, double across,
+                  double thin_fraction)
       : surface_(&surface),
         tree_(std::make_shared<Tree>(faces(surface).first, faces(surface).second, surface)),
         largest_(largest),
@@ -324,6 +327,29 @@ class ThicknessSizing {
         across_(across),
         inward_(CGAL::Polygon_mesh_processing::is_outward_oriented(surface) ? -1.0 : 1.0) {
     tree_->accelerate_distance_queries();
+    if (thin_fraction > 0.0) thin_below_ = thin_fraction * median_thickness();
+  }
+
+  /// The thickness at the faces' centroids, the median weighted by the faces' areas.
+  double median_thickness() const {
+    std::vector<std::pair<double, double>> samples;  // (thickness, area)
+    double total = 0.0;
+    for (const auto f : faces(*surface_)) {
+      const auto h = halfedge(f, *surface_);
+      const Kernel::Point_3& a = surface_->point(source(h, *surface_));
+      const Kernel::Point_3& b = surface_->point(target(h, *surface_));
+      const Kernel::Point_3& c = surface_->point(target(next(h, *surface_), *surface_));
+      const double area = std::sqrt(CGAL::squared_area(a, b, c));
+      samples.emplace_back(thickness(CGAL::centroid(a, b, c)), area);
+      total += area;
+    }
+    std::sort(samples.begin(), samples.end());
+    double sum = 0.0;
+    for (const auto& [t, area] : samples) {
+      sum += area;
+      if (sum >= 0.5 * total) return t;
+    }
+    return samples.empty() ? largest_ * across_ : samples.back().first;
   }
 
   /// The chord length through the solid at p (largest·across when the ray finds no exit).
@@ -343,7 +369,9 @@ class ThicknessSizing {
 
   template <class Index>
   FT operator()(const Kernel::Point_3& p, const int /*dimension*/, const Index& /*index*/) const {
-    return std::clamp(thickness(p) / across_, smallest_, largest_);
+    const double t = thickness(p);
+    if (t >= thin_below_) return largest_;
+    return std::clamp(t / across_, smallest_, largest_);
   }
 
  private:
@@ -353,6 +381,7 @@ class ThicknessSizing {
   std::shared_ptr<Tree> tree_;  // shared: Mesh_3 copies its criteria
   double largest_, smallest_, across_;
   double inward_;  // −1 when the faces are oriented outwards (their normals then point out)
+  double thin_below_ = std::numeric_limits<double>::infinity();
 };
 
 /// Surface_mesh of the referenced vertices (renumbered) and the faces. False if CGAL refuses a
@@ -433,7 +462,7 @@ std::optional<std::pair<TetMesherStatus, std::string>> refine_and_optimise(
     if (surface != nullptr && options.tets_across_thickness > 0.0) {
       const ThicknessSizing sizing(*surface, cell_size,
                                    std::min(cell_size, options.min_size_fraction * diagonal),
-                                   options.tets_across_thickness);
+                                   options.tets_across_thickness, options.thin_fraction_of_median);
       return Criteria3(
           p::edge_size = cell_size, p::facet_angle = options.facet_angle_degrees,
           p::facet_size = sizing, p::facet_distance = options.facet_distance_fraction * diagonal,
@@ -521,6 +550,8 @@ std::optional<std::string> TetMesherOptions::validate() const {
     s << "cell_size_fraction = " << cell_size_fraction << " must be in (0, 1]";
   } else if (!(tets_across_thickness >= 0.0 && std::isfinite(tets_across_thickness))) {
     s << "tets_across_thickness = " << tets_across_thickness << " must be >= 0";
+  } else if (!(thin_fraction_of_median >= 0.0 && std::isfinite(thin_fraction_of_median))) {
+    s << "thin_fraction_of_median = " << thin_fraction_of_median << " must be >= 0";
   } else if (!(min_size_fraction > 0.0 && min_size_fraction <= 1.0)) {
     s << "min_size_fraction = " << min_size_fraction << " must be in (0, 1]";
   } else if (!(facet_distance_fraction > 0.0 && facet_distance_fraction <= 1.0)) {

@@ -42,6 +42,12 @@ struct TetMesherOptions {
   double tets_across_thickness = 0.0;
   /// Lower bound of the thickness-sized bound, as a fraction of the diagonal; in (0, 1].
   double min_size_fraction = 0.005;
+  /// With tets_across_thickness: only parts thinner than this multiple of the surface's median
+  /// thickness (area-weighted over its faces) are thickness-sized, the rest gets the uniform
+  /// bound (issue 51: a femur is thin everywhere against a cell of 0.08 of its length, and
+  /// thickness sizing meshed it 2.5x finer with no part thinner than the rest); 0: every part
+  /// (as before); >= 0.
+  double thin_fraction_of_median = 0.0;
   /// Upper bound on the distance between a surface facet's circumcentre and its surface Delaunay
   /// ball centre (the approximation error of the surface), as a fraction of the bounding-box
   /// diagonal; in (0, 1]. Smaller values refine the surface more where it is curved.

@@ -175,7 +175,7 @@ void parse_mesh_options(const JsonCursor& m, offline::TetMesherOptions& o) {
                  "cell_radius_edge_ratio", "odt", "lloyd", "smoothing_iterations", "perturb",
                  "exude", "sliver_bound_degrees", "protect_sharp_features", "feature_angle_degrees",
                  "random_seed", "max_vertices", "optimisation_time_limit_seconds",
-                 "tets_across_thickness", "min_size_fraction"});
+                 "tets_across_thickness", "min_size_fraction", "thin_fraction_of_median"});
   auto real = [&](const char* key, double& out) {
     if (m.has(key)) out = m.at(key).finite_number();
   };
@@ -184,6 +184,7 @@ void parse_mesh_options(const JsonCursor& m, offline::TetMesherOptions& o) {
   };
   real("cell_size_fraction", o.cell_size_fraction);
   real("tets_across_thickness", o.tets_across_thickness);
+  real("thin_fraction_of_median", o.thin_fraction_of_median);
   real("min_size_fraction", o.min_size_fraction);
   real("facet_distance_fraction", o.facet_distance_fraction);
   real("facet_angle_degrees", o.facet_angle_degrees);

@@ -12,6 +12,7 @@
 ///   "mesh": {                       // optional, surface templates only (offline/meshing)
 ///     "cell_size_fraction": 0.06,   // tet circumradius bound / bounding-box diagonal
 ///     "tets_across_thickness": 4,   // thin parts this many tets across (tool default 4; 0: off)
+///     "thin_fraction_of_median": 0, // only parts under this x the median thickness (0: all)
 ///     "facet_distance_fraction": 0.002, "facet_angle_degrees": 25, "cell_radius_edge_ratio": 3,
 ///     "odt": true, "lloyd": false, "perturb": true, "exude": true, "sliver_bound_degrees": 12,
 ///     "protect_sharp_features": false, "random_seed": 0, "max_vertices": 2000000,

@@ -450,4 +450,20 @@ TEST(TetMesher, ThicknessSizedCellsPutSeveralTetsAcrossAThinSlab) {
   EXPECT_GT(sized.summary.num_tets, uniform.summary.num_tets);
   EXPECT_NEAR(sized.summary.tet_volume, 0.25 * thickness, 1e-6);
   EXPECT_TRUE(sinew::common::check_tet_mesh(sized.mesh.vertices, sized.mesh.tets).ok());
+
+  // thin_fraction_of_median (issue 51): the slab's median thickness is its own (the two large
+  // faces are most of the area), so at half the median nothing is thin and the mesh is the
+  // uniform one; at twice the median the slab is thin and sized as above.
+  options.thin_fraction_of_median = 0.5;
+  const TetMesherResult none_thin = make_tet_mesh(slab.V, slab.F, options);
+  ASSERT_TRUE(none_thin.summary.ok()) << none_thin.summary.brief_report();
+  EXPECT_EQ(none_thin.summary.num_tets, uniform.summary.num_tets);
+  EXPECT_GT(median(z_extents(none_thin.mesh, thickness)), 0.9);
+  options.thin_fraction_of_median = 2.0;
+  const TetMesherResult all_thin = make_tet_mesh(slab.V, slab.F, options);
+  ASSERT_TRUE(all_thin.summary.ok()) << all_thin.summary.brief_report();
+  EXPECT_EQ(all_thin.summary.num_tets, sized.summary.num_tets);
+  EXPECT_LT(median(z_extents(all_thin.mesh, thickness)), 0.6);
+  options.thin_fraction_of_median = -1.0;
+  EXPECT_TRUE(options.validate().has_value());
 }
