@@ -231,6 +231,7 @@ py::dict register_case(const py::object& source, const std::optional<std::string
   }
   const py::object json_loads = py::module_::import("json").attr("loads");
   py::dict result(py::arg("usable") = r.registration.summary.usable(),
+                  py::arg("failed") = r.registration.summary.failed(),
                   py::arg("report") = json_loads(report.dump()), py::arg("written") = written);
   if (r.shape) {
     const RowMatrixOf<double> vertices = r.shape->surface.vertices;
@@ -461,7 +462,8 @@ Registers a case as sinew-register does (offline::register_case): case is a case
 the same content as a dict (relative file names then resolve against the working folder).
 max_iterations overrides the case's stop.max_iterations; quiet=False prints the progress lines.
 With out_dir, sinew-register's files are written there too (result_surface.obj, result.vtu,
-report.json, plots). Returns a dict: usable, report (report.json's content), written (paths) and,
+report.json, plots). Returns a dict: usable, failed (not usable, or "stalled": sinew-register's
+exit status 1), report (report.json's content), written (paths) and,
 for a usable registration, vertices (n x 3) and faces (m x 3) of the deformed surface, tet_vertices
 and tets of the deformed tet mesh, Fp (per tet, row-major 3x3 as 9 columns) and marker_errors, in
 the case's units. Bad input raises ValueError with the one-line message sinew-register prints.
