@@ -148,9 +148,9 @@ struct WhiskerDetection {
 double contrast_scale(double backlight, double dark_level);
 
 /// The grey level below which the frame smoothed by 4 px is dark (the face, a pole) for a
-/// fraction of the backlight (dark_fraction, object_fraction): backlight × (1 − (1 − fraction) ×
-/// contrast_scale): the fraction itself while the face stands out as usual, nearer the backlight
-/// where the face is lighter.
+/// fraction of the backlight (dark_fraction, object_fraction): the fraction of the backlight while
+/// the face stands out as usual (contrast_scale 1), else the fraction of the way from the face's
+/// level up to the backlight (a lit face, a video of low contrast).
 double dark_threshold(double fraction, double backlight, double dark_level);
 
 /// Detects the whiskers of one 8-bit grey frame.
