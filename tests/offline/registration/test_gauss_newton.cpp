@@ -432,6 +432,17 @@ TEST(GaussNewton, PointToPlaneIterationsLetIcpMarkersSlide) {
   EXPECT_LT(plain.correlation, sliding.correlation);
 }
 
+// The bar's attachments and ICP markers at the first `count` of the truth's candidate vertices.
+RegistrationConstraints attached_with_icp_markers(const Bar& bar, const Truth& truth,
+                                                  std::size_t count) {
+  RegistrationConstraints constraints;
+  constraints.attachments = bar.attachments;
+  for (std::size_t i = 0; i < count; ++i) {
+    constraints.icp_markers.push_back(truth.x.segment<3>(3 * truth.candidates[i]));
+  }
+  return constraints;
+}
+
 // The ICP weight ramp (GaussNewtonOptions::icp_weight_ramp): its iterations weigh the markers
 // by the factors (the objective before the first ICP iteration is the smoothness plus factor·the
 // plain run's marker term, at the same state), the stopping tests wait for the full weight, and
@@ -439,12 +450,8 @@ TEST(GaussNewton, PointToPlaneIterationsLetIcpMarkersSlide) {
 TEST(GaussNewton, IcpWeightRampWeighsTheFirstIterationsLessAndStopsOnlyAtFullWeight) {
   Bar bar = make_bar();
   ASSERT_TRUE(bar.energy.has_value());
-  const Truth truth = make_truth(bar, 5);
-  RegistrationConstraints constraints;
-  constraints.attachments = bar.attachments;
-  for (std::size_t i = 0; i < 12; ++i) {
-    constraints.icp_markers.push_back(truth.x.segment<3>(3 * truth.candidates[i]));
-  }
+  const RegistrationConstraints constraints =
+      attached_with_icp_markers(bar, make_truth(bar, 5), 12);
   auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
   ASSERT_TRUE(surface_query.has_value());
   BoundaryClosestPoint closest(*surface_query);
@@ -491,12 +498,8 @@ TEST(GaussNewton, IcpWeightRampWeighsTheFirstIterationsLessAndStopsOnlyAtFullWei
 TEST(GaussNewton, SmallDecreaseWithMarkersFarFromTheToleranceIsAStall) {
   Bar bar = make_bar();
   ASSERT_TRUE(bar.energy.has_value());
-  const Truth truth = make_truth(bar, 5);
-  RegistrationConstraints constraints;
-  constraints.attachments = bar.attachments;
-  for (std::size_t i = 0; i < 12; ++i) {
-    constraints.icp_markers.push_back(truth.x.segment<3>(3 * truth.candidates[i]));
-  }
+  const RegistrationConstraints constraints =
+      attached_with_icp_markers(bar, make_truth(bar, 5), 12);
   auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
   ASSERT_TRUE(surface_query.has_value());
   BoundaryClosestPoint closest(*surface_query);
