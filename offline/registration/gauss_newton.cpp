@@ -999,12 +999,12 @@ RegistrationResult run_registration(const PlasticElasticEnergy& energy_in,
   if ((termination == GaussNewtonTermination::kSmallDecrease ||
        termination == GaussNewtonTermination::kSmallStep) &&
       options.max_marker_error > 0.0 && summary.marker_error_mean > options.max_marker_error) {
-    summary.message = std::string("stalled: the ") + to_string(final_stage) + " stage ended by " +
-                      to_string(termination) + " with its markers on average " +
-                      fmt::format("{:.3g}", summary.marker_error_mean / options.max_marker_error) +
-                      "x the marker tolerance from their targets (largest " +
-                      fmt::format("{:.3g}", summary.marker_error_max / options.max_marker_error) +
-                      "x)";
+    summary.message = fmt::format(
+        "stalled: the {} stage ended by {} with its markers on average {:.3g}x the marker "
+        "tolerance from their targets (largest {:.3g}x)",
+        to_string(final_stage), to_string(termination),
+        summary.marker_error_mean / options.max_marker_error,
+        summary.marker_error_max / options.max_marker_error);
     termination = GaussNewtonTermination::kStalled;
   }
   summary.termination = termination;
