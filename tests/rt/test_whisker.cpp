@@ -355,8 +355,8 @@ TEST(WhiskerTracker, EveryMirrorImageAndTurnOfAPadIsTrackedAsWellAsTheOriginal) 
   // orientations: the list's order is no information), scored against the truth.
   // Not bit for bit: the sums of the ridge response run the other way along a mirrored normal,
   // and a difference in the last bit of a float moves a faint tip's fit by a search line's
-  // candidate within a few frames (measured: the first node 0.06-0.14 px apart on frames 4-9,
-  // tip nodes up to 7 px apart later), so the orientations are compared by how well they track.
+  // candidate within a few frames (measured: nodes near the tips 0.06-0.14 px apart from frames
+  // 4-9 on, up to 7 px later), so the orientations are compared by how well they track.
   const int frames = 40;
   std::vector<Scene> scenes;
   for (int f = 0; f < frames; ++f) {
