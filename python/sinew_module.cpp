@@ -488,8 +488,9 @@ base_radius_um=0, tip_radius_um=0, length_mm=0, axis_angle_deg=0, curvature_wind
 moment_elements=3, rest_frame=0, rest_frames=1, associate_home_px=0, whisker_preset='',
 start_clearance_px=0, start_mean_surround_px=0, fit_follicle_position=False,
 profile_position=False, held_ridge_px=2, associate_contrast_ratio=2): the options of sinew-track --whiskers (docs/tracker.md). Without mm_per_px and
-the radii, curvature and moment are in pixel model units. whisker_preset='rat-c2' takes the modulus,
-radii and length from the literature (docs/tracker.md); keywords given other values override them.
+the radii, curvature and moment are in pixel model units. whisker_preset='rat-c2' or 'mouse-c2' takes
+the modulus, radii and length from the literature (mouse-c2's modulus is the rat's: none is measured
+in mice; docs/tracker.md); keywords given other values override them.
 )doc")
       .def(py::init<const std::string&, const std::string&, double, double, double, double, double,
                     double, double, std::pair<double, double>, int, int, int, double,

@@ -68,8 +68,14 @@ struct WhiskerPhysics {
 ///   tensile tests of 22 rat vibrissae (Quist, Faruqi and Hartmann 2011, J. Biomech. 44:2775;
 ///   ±1.48 GPa between whiskers). Individual whiskers differ from these means by ~10 % in radius
 ///   (so ~40 % in E·I): measure your animal's where the forces matter.
-/// No mouse whisker yet: the sources at hand give a mouse C2's length (16.1 mm from the equations
-/// of Bresee et al. 2023, J. Exp. Biol. 226:jeb245597) but not its radius or modulus.
+/// - "mouse-c2": the mouse's C2 whisker. Length 13.2 mm: measured in 3D on 16 C2 whiskers of 8
+///   mice (13.2 ± 1.5 mm; Bresee, Belli, Luo and Hartmann 2023, J. Exp. Biol. 226:jeb245597);
+///   base radius 33.5 µm: the default of the Svoboda/O'Connor labs' whisker-analysis package
+///   (a code default, no paper table; other lab scripts use 30 and 36.5 µm); tip radius 1.5 µm:
+///   the Hires, Pammer, Svoboda and Golomb 2013 model (eLife 2:e01350); Young's modulus
+///   3.34 GPa BORROWED FROM THE RAT (the rat-c2 value above): no tensile test of mouse whiskers
+///   is published. The radius is the least firm value, and E·I goes with its fourth power:
+///   measure your animal's where the forces matter.
 std::optional<WhiskerPhysics> whisker_preset(std::string_view name);
 /// The names whisker_preset() knows, for help texts and error messages.
 const std::vector<std::string>& whisker_preset_names();

@@ -340,9 +340,35 @@ TEST(WhiskerPreset, RatC2IsATaperedConeOfTheLiteraturesSize) {
   const double mid_radius = 0.5 * (69.5e-6 + 1.6e-6);
   const double mid_ei = 3.34e9 * M_PI * std::pow(mid_radius, 4) / 4.0;
   EXPECT_NEAR(scaled.section_at(16.8, 0.0).EI, mid_ei, 1e-9 * mid_ei);
-  EXPECT_FALSE(whisker_preset("mouse-c2").has_value());
+  EXPECT_FALSE(whisker_preset("mouse").has_value());
   EXPECT_FALSE(whisker_preset("").has_value());
-  EXPECT_EQ(whisker_preset_names(), std::vector<std::string>{"rat-c2"});
+  EXPECT_EQ(whisker_preset_names(), (std::vector<std::string>{"rat-c2", "mouse-c2"}));
+}
+
+// The mouse C2 preset: its sourced length and radii, the rat's modulus (none is measured in mice),
+// and E·I of its cone at the follicle, the middle and the tip; about (33.5 / 69.5)⁴ ≈ 1/19 of the
+// rat's at the follicle.
+TEST(WhiskerPreset, MouseC2IsAThinnerShorterConeWithTheRatsModulus) {
+  const auto mouse = whisker_preset("mouse-c2");
+  const auto rat = whisker_preset("rat-c2");
+  ASSERT_TRUE(mouse.has_value() && rat.has_value());
+  EXPECT_EQ(mouse->young_modulus_gpa, rat->young_modulus_gpa);
+  EXPECT_EQ(mouse->base_radius_um, 33.5);
+  EXPECT_EQ(mouse->tip_radius_um, 1.5);
+  EXPECT_EQ(mouse->length_mm, 13.2);
+  EXPECT_EQ(mouse->mm_per_px, 0.0);
+  WhiskerPhysics scaled = *mouse;
+  scaled.mm_per_px = 0.02;
+  EXPECT_FALSE(scaled.validate().has_value());
+  const auto ei = [](double radius_m) { return 3.34e9 * M_PI * std::pow(radius_m, 4) / 4.0; };
+  EXPECT_NEAR(scaled.section_at(0.0, 0.0).EI, ei(33.5e-6), 1e-9 * ei(33.5e-6));
+  EXPECT_NEAR(scaled.section_at(6.6, 0.0).EI, ei(17.5e-6), 1e-9 * ei(17.5e-6));
+  EXPECT_NEAR(scaled.section_at(13.2, 0.0).EI, ei(1.5e-6), 1e-9 * ei(1.5e-6));
+  WhiskerPhysics rat_scaled = *rat;
+  rat_scaled.mm_per_px = 0.02;
+  const double ratio = scaled.section_at(0.0, 0.0).EI / rat_scaled.section_at(0.0, 0.0).EI;
+  EXPECT_NEAR(ratio, std::pow(33.5 / 69.5, 4), 1e-9);
+  EXPECT_LT(ratio, 1.0 / 18.0);
 }
 
 }  // namespace

@@ -194,7 +194,8 @@ TEST(SinewTrack, WhiskerDetectionPictureMarksEveryFollicleFound) {
 
 // --whisker-preset rat-c2 is the same as its four values given one by one, and a value given beside
 // it overrides the preset's: a thinner base radius scales the follicle's moment by about the
-// fourth power of the radii (E·I of a circle), and an unknown name is refused.
+// fourth power of the radii (E·I of a circle), the mouse's preset is its four values too, and an
+// unknown name is refused.
 TEST(SinewTrack, AWhiskerPresetIsItsValuesAndAGivenValueOverridesIt) {
   const fs::path dir = sinew::testing::scratch_dir("sinew_track_whisker_preset");
   auto r = run_tool(kBin + "sinew-synth --scenario whisker-pad --frames 8 --whiskers 4 --out " +
@@ -237,6 +238,17 @@ TEST(SinewTrack, AWhiskerPresetIsItsValuesAndAGivenValueOverridesIt) {
     ++compared;
   }
   EXPECT_GE(compared, 10);
+  // The mouse's preset, likewise its four values; its thinner whisker carries smaller moments.
+  const auto mouse = moments("--whisker-preset mouse-c2");
+  ASSERT_EQ(mouse, moments("--young-modulus-gpa 3.34 --base-radius-um 33.5 --tip-radius-um 1.5 "
+                           "--whisker-length-mm 13.2"));
+  ASSERT_EQ(mouse.size(), preset.size());
+  double mouse_sum = 0.0, rat_sum = 0.0;
+  for (std::size_t i = 0; i < preset.size(); ++i) {
+    mouse_sum += std::abs(mouse[i]);
+    rat_sum += std::abs(preset[i]);
+  }
+  EXPECT_LT(mouse_sum, 0.2 * rat_sum);
   r = run_tool(kBin + "sinew-track --quiet --whiskers --whisker-preset mouse-x --input " +
                    (dir / "pad" / "frames" / "f_%04d.png").string(),
                dir);

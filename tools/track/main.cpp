@@ -504,8 +504,9 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   std::string whisker_preset;
   app.add_option("--whisker-preset", whisker_preset,
-                 "--whiskers: a whisker's modulus, radii and length from the literature (rat-c2; "
-                 "sources in docs/tracker.md); the options below override single values")
+                 "--whiskers: a whisker's modulus, radii and length from the literature: rat-c2, "
+                 "or mouse-c2 (its modulus borrowed from the rat: none is measured in mice); "
+                 "sources in docs/tracker.md; the options below override single values")
       ->check(CLI::IsMember(rt::whisker_preset_names()));
   app.add_option("--young-modulus-gpa", readout.physics.young_modulus_gpa,
                  "--whiskers: Young's modulus (default 3.34, rat vibrissae, Quist et al. 2011)");
