@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "common/detail/field_error.hpp"
 #include "rt/detail/order_statistic.hpp"
@@ -106,8 +107,14 @@ LoadFit::LoadFit(const common::BeamDescription& beam, LoadFitOptions options)
   jacobian_.setZero(3 * n_, max_params);
   weighted_jacobian_.setZero(3 * n_, max_params);
   normal_.setZero(max_params, max_params);
+  covariance_.setZero(max_params, max_params);
+  sandwich_.setZero(max_params, max_params);
+  support_columns_.setZero(dofs, 3);
+  support_jacobian_.setZero(3 * n_, 3);
+  support_sensitivity_.setZero(max_params, 3);
   ldlt_ = Eigen::LDLT<Eigen::MatrixXd>(max_params);
   sorted_.setZero(n_);
+  weights_.setOnes(n_);
   rotation_scale_ = coarse.total_length() / coarse.num_elements();
   tangent_.resize(model_.num_nodes());
   factor_.resize(model_.num_nodes());
@@ -161,7 +168,8 @@ void LoadFit::take_supports(const Eigen::Ref<const Eigen::VectorXd>& tracked,
 bool LoadFit::parameter_columns(bool newton_step) {
   // Node 0's dofs couple to fine node 1 only (the tangent is block-tridiagonal); a support dof d
   // moved by 1 moves the free dofs by −K_ff⁻¹ K_f,d.
-  const Eigen::Matrix3d base_coupling = tangent_.lower(0);
+  base_coupling_ = tangent_.lower(0);
+  const Eigen::Matrix3d& base_coupling = base_coupling_;
   tangent_.apply_fixed_dofs(model_.fixed_mask());
   if (!factor_.factor(tangent_)) return false;
   // Every right-hand side first, then one solve for all of them (columns side by side: 0.6x the
@@ -221,9 +229,11 @@ bool LoadFit::step(bool robust) {
     for (int i = 0; i < n_; ++i) {
       const double r = residual_.segment<3>(3 * i).norm() / cut;
       const double w = r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0;
+      weights_[i] = w;
       WJ.middleRows<3>(3 * i) = w * J.middleRows<3>(3 * i);
     }
   } else {
+    weights_.setOnes();
     WJ = J;
   }
   auto N = normal_.topLeftCorner(p, p);
@@ -345,6 +355,62 @@ bool LoadFit::nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iter
   return ok;
 }
 
+double LoadFit::update_covariance(bool equilibrium) noexcept {
+  const int p = params_ + base_;
+  auto C = covariance_.topLeftCorner(p, p);
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  // Weighted squared misfit over the weighted count of measured coordinates (node 0's fitted
+  // support dofs are not measurements), less the parameters.
+  double misfit = 0.0, measured = -weights_[0] * base_;
+  for (int i = 0; i < n_; ++i) {
+    misfit += weights_[i] * residual_.segment<3>(3 * i).squaredNorm();
+    measured += 3.0 * weights_[i];
+  }
+  const double dof = measured - p;
+  if (!equilibrium || !(dof >= 1.0)) {
+    C.setConstant(kNaN);
+    return kNaN;
+  }
+  const double variance = misfit / dof;
+  // N⁻¹ M N⁻¹ with M = (WJ)ᵀ(WJ) = Jᵀ W² J: N⁻¹ M, turned (M and N are symmetric), N⁻¹ again.
+  // ldlt_ holds N from the last step, at the answer to the stopping rule.
+  auto WJ = weighted_jacobian_.leftCols(p);
+  auto S = sandwich_.topLeftCorner(p, p);
+  S.noalias() = WJ.transpose() * WJ;
+  // The held supports of node 0 (fixed, not fitted) take the tracked first node's noisy values:
+  // each moves the equilibrium by −K_ff⁻¹ K_f,d (at the loads held), the tracked nodes by g_d,
+  // and the parameters by −N⁻¹ (WJ)ᵀ g_d. Their columns per unit arc (rotations as arcs, like
+  // the measurements), so each carries the same σ.
+  const auto& fixed = model_.fixed_mask();
+  int held = 0;
+  for (int d = 0; d < 3; ++d) {
+    if (!fixed[d] || std::find(base_dofs_, base_dofs_ + base_, d) != base_dofs_ + base_) continue;
+    auto z = support_columns_.col(held++);
+    z.setZero();
+    z.segment<3>(3) = -base_coupling_.col(d) / (d == 2 ? rotation_scale_ : 1.0);
+  }
+  if (held > 0) {
+    auto G = support_jacobian_.leftCols(held);
+    factor_.solve_columns_in_place(support_columns_.leftCols(held));
+    for (int j = 0; j < held; ++j) {
+      const auto z = support_columns_.col(j);
+      for (int i = 0; i < n_; ++i) {
+        G.block<2, 1>(3 * i, j) = z.segment<2>(3 * parts_ * i);
+        G(3 * i + 2, j) = rotation_scale_ * z[3 * parts_ * i + 2];
+      }
+      G.block<3, 1>(0, j).setZero();  // node 0's own misfit: held exactly, or fitted
+    }
+    auto T = support_sensitivity_.topLeftCorner(p, held);
+    T.noalias() = WJ.transpose() * G;
+    S.noalias() += T * T.transpose();
+  }
+  ldlt_.solveInPlace(S);
+  C = S.transpose();
+  ldlt_.solveInPlace(C);
+  C *= variance;
+  return std::sqrt(variance);
+}
+
 LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, const int* points,
                             int count, const double* directions) noexcept {
   LoadFitSummary summary;
@@ -376,6 +442,7 @@ LoadFitSummary LoadFit::fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, co
   summary.equilibrium = equilibrium;
   summary.iterations = iterations;
   summary.rms_px = std::sqrt(residual_.squaredNorm() / n_);
+  summary.noise_px = update_covariance(equilibrium);
   return summary;
 }
 

@@ -65,6 +65,11 @@ struct LoadFitSummary {
   bool coupled = false;  ///< the coupled method gave the answer
   int iterations = 0;    ///< Gauss–Newton iterations of the method that answered
   double rms_px = 0.0;   ///< RMS misfit between the fitted equilibrium and the tracked nodes
+  /// The tracked nodes' noise the fit's covariance assumes, pixels per coordinate: the
+  /// Tukey-weighted misfit over the measurements less the parameters fitted (rotations count as
+  /// arcs over one element). NaN without an equilibrium or with no more measurements than
+  /// parameters.
+  double noise_px = 0.0;
 };
 
 class LoadFit {
@@ -98,6 +103,18 @@ class LoadFit {
   /// The fitted offset of node 0's support position from the tracked one (pixels; zero unless
   /// options().fit_base_translation).
   Eigen::Vector2d base_translation() const { return {base_offsets_[0], base_offsets_[1]}; }
+  /// The covariance of the last fit's parameters, loads() then the fitted supports of node 0
+  /// (rotation, then x and y, as fitted: of the support tracked + offset, which does not depend on
+  /// the tracked first node), the tracked coordinates taken as independent with the noise
+  /// σ = LoadFitSummary::noise_px (rotations as arcs over one element):
+  /// σ² N⁻¹ (Jᵀ W² J + Σ_d (Jᵀ W g_d)(Jᵀ W g_d)ᵀ) N⁻¹, N = Jᵀ W J, J the tracked nodes'
+  /// derivatives by the parameters at the answer, W the Tukey weights, g_d their derivatives by
+  /// node 0's held (tracked, not fitted) support coordinates: the follicle's own noise moves the
+  /// clamp and with it the loads. Other supports are taken as exact. NaN where the fit found no
+  /// equilibrium. Square, loads().size() + the fitted supports' count.
+  Eigen::Ref<const Eigen::MatrixXd> covariance() const {
+    return covariance_.topLeftCorner(params_ + base_, params_ + base_);
+  }
   /// The fitted equilibrium state of the subdivided beam.
   const Eigen::VectorXd& state() const { return u_; }
   /// Forgets the last fit: the next starts from the unloaded beam.
@@ -108,6 +125,8 @@ class LoadFit {
   // Sets *equilibrium when it ends at an equilibrium of its loads, converged or not.
   bool nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations, bool* equilibrium);
   bool step(bool robust);
+  // covariance_ and the noise from the last step's weights and Jacobian and the final residual_.
+  double update_covariance(bool equilibrium) noexcept;
   void residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const Eigen::VectorXd& u);
   // f += sign · E q: this call's loads at their dofs.
   void add_loads(Eigen::VectorXd& f, double sign) const;
@@ -137,7 +156,12 @@ class LoadFit {
   Eigen::VectorXd u_, loads_prev_, rhs_, du_, z_, u_backup_;
   Eigen::MatrixXd columns_;  // K_T⁻¹E, one column per load parameter
   Eigen::VectorXd residual_, change_, q_, q_backup_, dq_, g_;
-  Eigen::MatrixXd jacobian_, weighted_jacobian_, normal_;
+  Eigen::MatrixXd jacobian_, weighted_jacobian_, normal_, covariance_, sandwich_;
+  // Node 0's support coupling to fine node 1 at the last parameter_columns(), and the tracked
+  // nodes' derivatives by its held support coordinates with their parameter sensitivities.
+  Eigen::Matrix3d base_coupling_ = Eigen::Matrix3d::Zero();
+  Eigen::MatrixXd support_columns_, support_jacobian_, support_sensitivity_;
+  Eigen::VectorXd weights_;  // the last step's Tukey weight per tracked node
   Eigen::LDLT<Eigen::MatrixXd> ldlt_;
   Eigen::VectorXf sorted_;
   common::BlockTridiagonal tangent_;

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <random>
 
 #include "common/beam/static_solver.hpp"
 
@@ -225,6 +226,54 @@ TEST_P(LoadFitMethods, AFittedFolliclePositionIgnoresTheTrackedOne) {
   held.fit(tracked, &c.point, 1, c.direction);
   EXPECT_GT(std::abs(held.loads()[0] - 0.8 * P), 0.02 * P) << held.loads()[0] / P;
   EXPECT_EQ(held.base_translation().norm(), 0.0);
+}
+
+// The reported covariance is the parameters' scatter: the turned-clamp scene's exact shape with
+// independent Gaussian noise of σ = 0.1 px on every tracked coordinate (rotations as arcs over one
+// element), fitted 400 times with the follicle angle a parameter, as the whisker session fits a
+// contact. The noise the fit reads off its misfit is σ, and the reported standard deviations of
+// the force and the angle are their scatter over the draws, each within 12 % (the sampling error
+// of a standard deviation over 400 draws is 3.5 %; measured 0.983 and 0.981 of it, both methods).
+// Without the follicle's own noise (node 0's tracked position moves the clamp) they read 0.59 and
+// 0.26 of it. An exact shape gives a covariance near zero.
+TEST_P(LoadFitMethods, ItsCovarianceIsTheScatterOfItsLoadsUnderNoise) {
+  LoadFitOptions o = one_point_options(GetParam());
+  o.fit_base_rotation = true;
+  const auto beam = cantilever();
+  LoadFit held(beam, o), fitted(beam, o);
+  ASSERT_TRUE(fitted.valid()) << fitted.error();
+  const TurnedClamp c = turned_clamp(held, fitted, GetParam());
+  LoadFitSummary s = fitted.fit(c.exact, &c.point, 1, c.direction);
+  ASSERT_TRUE(s.equilibrium);
+  ASSERT_EQ(fitted.covariance().rows(), 2);
+  EXPECT_LT(std::sqrt(fitted.covariance()(0, 0)), 1e-3 * c.P);
+  constexpr double kSigma = 0.1;
+  const double element = 20.0;  // the cantilever's element length: rotations enter as arcs over it
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, kSigma);
+  const int draws = 400;
+  Eigen::ArrayXd force(draws), angle(draws), force_sd(draws), angle_sd(draws), noise_px(draws);
+  for (int k = 0; k < draws; ++k) {
+    Eigen::VectorXd tracked = c.exact;
+    for (Eigen::Index i = 0; i < tracked.size(); ++i)
+      tracked[i] += (i % 3 == 2 ? 1.0 / element : 1.0) * noise(rng);
+    s = fitted.fit(tracked, &c.point, 1, c.direction);
+    ASSERT_TRUE(s.equilibrium) << k;
+    force[k] = fitted.loads()[0];
+    angle[k] = tracked[2] + fitted.base_rotation();  // the fitted follicle angle
+    force_sd[k] = std::sqrt(fitted.covariance()(0, 0));
+    angle_sd[k] = std::sqrt(fitted.covariance()(1, 1));
+    noise_px[k] = s.noise_px;
+  }
+  const auto scatter = [](const Eigen::ArrayXd& x) {
+    return std::sqrt((x - x.mean()).square().sum() / double(x.size() - 1));
+  };
+  EXPECT_NEAR(noise_px.mean(), kSigma, 0.05 * kSigma);
+  EXPECT_NEAR(force_sd.mean() / scatter(force), 1.0, 0.12)
+      << force_sd.mean() << " against " << scatter(force);
+  EXPECT_NEAR(angle_sd.mean() / scatter(angle), 1.0, 0.12)
+      << angle_sd.mean() << " against " << scatter(angle);
+  EXPECT_NEAR(force.mean(), 0.8 * c.P, 3.0 * scatter(force) / std::sqrt(double(draws)));
 }
 
 TEST(LoadFit, BadOptionsAndFreeBeamsAreNamed) {
