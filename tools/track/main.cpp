@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -21,7 +22,9 @@
 #include "rt/stabilisation.hpp"
 #include "rt/tracker.hpp"
 #include "rt/whisker/readout.hpp"
+#include "tools/batch/child_processes.hpp"
 #include "tools/io/beam_json.hpp"
+#include "tools/track/batch.hpp"
 #include "tools/track/frame_source.hpp"
 #include "tools/track/overlay_sink.hpp"
 #include "tools/track/track_init.hpp"
@@ -425,8 +428,7 @@ int run(const Args& args) {
 int main(int argc, char** argv) {
   CLI::App app{"Track a beam-like object through frames and recover its forces (Sinew)"};
   Args args;
-  app.add_option("--input", args.input, "video file, image, folder of images or printf pattern")
-      ->required();
+  app.add_option("--input", args.input, "video file, image, folder of images or printf pattern");
   app.add_option("--init", args.init, "init.json: polyline on the first frame, material, ...");
   bool whiskers = false;
   std::string face = "auto";
@@ -549,7 +551,22 @@ int main(int argc, char** argv) {
   app.add_option("--detection-picture", detection_picture,
                  "--whiskers: PNG of the first frame's detection, magnified 3x: the whiskers found "
                  "and every trace that was not, coloured by the reason (why a whisker was missed)");
-  app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)")->required();
+  app.add_option("--out", args.out, "results, one JSON object per frame (JSON Lines)");
+  std::string batch;
+  tools::TrackBatchOptions batch_options;
+  std::optional<long> batch_task;
+  app.add_option("--batch", batch,
+                 "whisker videos from a manifest (JSON: videos with their face side, scale and "
+                 "physics, or a folder and a glob), one results folder each and a summary table; "
+                 "videos already done are skipped (docs/whisker_batch.md)");
+  app.add_option("--jobs", batch_options.jobs, "--batch: videos tracked at once (processes)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--task", batch_task,
+                 "--batch: track video N (0-based) alone; default: SLURM_ARRAY_TASK_ID when set")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--gather", batch_options.gather,
+               "--batch: track nothing; the summary table from the videos' results (after a "
+               "Slurm job array)");
   app.add_option("--overlay", args.overlay, "folder for overlay PNGs, or a .mp4/.avi file");
   app.add_option("--stride", args.stride, "process every K-th frame")->check(CLI::PositiveNumber);
   app.add_option("--first", args.first, "index of the first frame to process")
@@ -574,6 +591,20 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   try {
+    if (!batch.empty()) {
+      if (!args.input.empty() || !args.out.empty()) {
+        throw tools::InputError(
+            "--batch takes the videos and folders from the manifest; drop "
+            "--input and --out");
+      }
+      const tools::TrackBatchManifest manifest = tools::read_track_batch_manifest(batch);
+      batch_options.quiet = args.quiet;
+      batch_options.task = tools::select_array_task(manifest.videos.size(), manifest.path, "video",
+                                                    batch_task, std::getenv("SLURM_ARRAY_TASK_ID"));
+      return tools::run_track_batch(manifest, batch_options);
+    }
+    if (args.input.empty()) throw tools::InputError("--input is required (or --batch)");
+    if (args.out.empty()) throw tools::InputError("--out is required");
     if (whiskers) {
       if (!args.init.empty()) throw tools::InputError("--whiskers finds the whiskers; drop --init");
       tools::WhiskerTrackArgs w;
