@@ -564,6 +564,10 @@ int main(int argc, char** argv) {
   app.add_option("--task", batch_task,
                  "--batch: track video N (0-based) alone; default: SLURM_ARRAY_TASK_ID when set")
       ->check(CLI::NonNegativeNumber);
+  bool batch_list = false;
+  app.add_flag("--list", batch_list,
+               "--batch: print the manifest's videos, one line each (index, video, results "
+               "folder), and track nothing: `--list | wc -l` sizes a Slurm job array");
   app.add_flag("--gather", batch_options.gather,
                "--batch: track nothing; the summary table from the videos' results (after a "
                "Slurm job array)");
@@ -598,6 +602,13 @@ int main(int argc, char** argv) {
             "--input and --out");
       }
       const tools::TrackBatchManifest manifest = tools::read_track_batch_manifest(batch);
+      if (batch_list) {
+        for (std::size_t i = 0; i < manifest.videos.size(); ++i) {
+          std::cout << i << "\t" << manifest.videos[i].video << "\t" << manifest.videos[i].out_dir
+                    << "\n";
+        }
+        return 0;
+      }
       batch_options.quiet = args.quiet;
       batch_options.task = tools::select_array_task(manifest.videos.size(), manifest.path, "video",
                                                     batch_task, std::getenv("SLURM_ARRAY_TASK_ID"));
