@@ -353,10 +353,18 @@ class PyWhiskers {
         d["contact_load_converged"] = sw.contact_load->converged;
         d[si_ ? "pammer_force_N" : "pammer_force_model"] = sw.contact_load->pammer_force;
         d[si_ ? "pammer_moment_N_m" : "pammer_moment_model"] = sw.contact_load->pammer_moment;
+        if (sw.contact_load->equilibrium) {
+          d[si_ ? "contact_force_sd_N" : "contact_force_sd_model"] = sw.contact_load->force_sd;
+          d[si_ ? "contact_moment_sd_N_m" : "contact_moment_sd_model"] = sw.contact_load->moment_sd;
+          d["contact_load_noise_px"] = sw.contact_load->noise_px;
+        }
       }
       if (const auto f = sw.follicle_force()) {
         d[si_ ? "follicle_force_axial_N" : "follicle_force_axial_model"] = f->x();
         d[si_ ? "follicle_force_lateral_N" : "follicle_force_lateral_model"] = f->y();
+        const Eigen::Vector2d sd = *sw.follicle_force_sd();
+        d[si_ ? "follicle_force_axial_sd_N" : "follicle_force_axial_sd_model"] = sd.x();
+        d[si_ ? "follicle_force_lateral_sd_N" : "follicle_force_lateral_sd_model"] = sd.y();
       }
       whiskers.append(d);
     }

@@ -260,6 +260,24 @@ WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const Whis
       Eigen::Rotation2Dd(fit.state()[2]) * (X.col(1) - X.col(0)).normalized();
   load.follicle_axial = -load.force.dot(base);
   load.follicle_lateral = load.force.y() * base.x() - load.force.x() * base.y();
+  // Standard deviations: each value is linear in the force's magnitude q, the follicle's
+  // components also depend on the fitted follicle angle (the base tangent turns with it), so
+  // σ² = gᵀ C g over (q, angle) with C the fit's covariance (the angle second when fitted).
+  load.noise_px = s.noise_px;
+  const Eigen::Vector2d n(normal[0], normal[1]), turned(-base.y(), base.x());
+  const double q = fit.loads()[0];
+  const auto C = fit.covariance();
+  const bool angle = fit.options().fit_base_rotation;
+  const auto sd = [&](double dq, double dangle) {
+    double v = dq * dq * C(0, 0);
+    if (angle) v += 2.0 * dq * dangle * C(0, 1) + dangle * dangle * C(1, 1);
+    return std::sqrt(std::max(v, 0.0));
+  };
+  load.force_sd = sd(1.0, 0.0);
+  load.moment_sd = sd(arm_unit * (arm.x() * n.y() - arm.y() * n.x()), 0.0);
+  load.follicle_axial_sd = sd(-n.dot(base), -q * n.dot(turned));
+  load.follicle_lateral_sd =
+      sd(n.y() * base.x() - n.x() * base.y(), q * (n.y() * turned.x() - n.x() * turned.y()));
   return load;
 }
 

@@ -102,6 +102,17 @@ struct WhiskerSessionWhisker {
     /// is a parameter of the fit). Units of force above.
     double follicle_axial = kNaN;
     double follicle_lateral = kNaN;
+    /// Standard deviations of the force's magnitude (along the contact normal), the moment and
+    /// the follicle's two components, from the fit's covariance (LoadFit::covariance(): the
+    /// tracked nodes' noise read off the fit's misfit, the follicle's own noise, and the fitted
+    /// follicle angle's correlation with the force). The contact point is taken as known (it is
+    /// the detection's), and the rest shape as exact. NaN without an equilibrium.
+    double force_sd = kNaN;
+    double moment_sd = kNaN;
+    double follicle_axial_sd = kNaN;
+    double follicle_lateral_sd = kNaN;
+    /// The tracked nodes' noise the fit read off its misfit, pixels (LoadFitSummary::noise_px).
+    double noise_px = kNaN;
   };
   std::optional<ContactLoad> contact_load;
   /// The force on the follicle, (axial, lateral) as in ContactLoad, every frame it is known: a
@@ -111,6 +122,14 @@ struct WhiskerSessionWhisker {
   std::optional<Eigen::Vector2d> follicle_force() const {
     if (contact_load && contact_load->equilibrium)
       return Eigen::Vector2d(contact_load->follicle_axial, contact_load->follicle_lateral);
+    if (contact && !contact->touching) return Eigen::Vector2d::Zero();
+    return std::nullopt;
+  }
+  /// The standard deviations of follicle_force(), where it is known: the contact load's, or
+  /// zero where the whisker touches nothing.
+  std::optional<Eigen::Vector2d> follicle_force_sd() const {
+    if (contact_load && contact_load->equilibrium)
+      return Eigen::Vector2d(contact_load->follicle_axial_sd, contact_load->follicle_lateral_sd);
     if (contact && !contact->touching) return Eigen::Vector2d::Zero();
     return std::nullopt;
   }

@@ -50,6 +50,7 @@ std::vector<GreyImage> pressed_whisker_frames() {
 struct ContactFrames {
   int touching = 0, loads = 0, converged = 0, equilibria = 0, finite = 0;
   int untouched = 0, follicle_loads = 0;  // frames touching nothing; follicle forces checked
+  int with_sd = 0;                        // loads whose SDs were checked
   double largest_force_y = 0.0;           // the y component of the largest contact force
 };
 
@@ -82,6 +83,23 @@ ContactFrames run(const WhiskerSessionOptions& options) {
       }
       // A load is reported exactly when its fit found one.
       EXPECT_EQ(finite, load.equilibrium) << "whisker " << w;
+      // With its standard deviations: positive and finite, the moment's the force's times the
+      // same arm (the contact point is taken as known), the noise read off the fit's misfit
+      // positive. (This scene's bent whisker is an arc, not a point load's shape: the fits'
+      // misfits are 0.6–3.3 px RMS, most end unconverged, and their noise is the model's.)
+      const double F = load.force.norm();
+      if (finite && F > 0.0) {
+        EXPECT_TRUE(load.force_sd > 0.0 && std::isfinite(load.force_sd)) << load.force_sd;
+        EXPECT_NEAR(load.moment_sd, std::abs(load.moment) / F * load.force_sd,
+                    1e-9 * load.moment_sd);
+        EXPECT_TRUE(load.noise_px > 0.0 && std::isfinite(load.noise_px)) << load.noise_px;
+        EXPECT_TRUE(load.follicle_axial_sd > 0.0 && load.follicle_lateral_sd > 0.0);
+        // The follicle carries the force: its components' SDs are the force's within the
+        // fitted angle's share (the angle turns the split between them).
+        EXPECT_LT(std::hypot(load.follicle_axial_sd, load.follicle_lateral_sd),
+                  3.0 * load.force_sd + 0.2 * F);
+        ++out.with_sd;
+      }
       // The follicle carries the contact force: the same size, in the base frame (the fitted
       // follicle angle, up to 6° from the tracked first element's direction t here, so 0.15 F):
       // axial −F·t, positive into the face; lateral F·n, n = t turned +90°. A wrong axis or
@@ -93,7 +111,6 @@ ContactFrames run(const WhiskerSessionOptions& options) {
         const Tracker& t = session.tracker().whisker(w);
         const Eigen::Vector2d base = (t.node_position(1) - t.node_position(0)).normalized();
         const Eigen::Vector2d normal(-base.y(), base.x());
-        const double F = load.force.norm();
         EXPECT_NEAR(follicle->norm(), F, 1e-12 * F);
         EXPECT_NEAR(follicle->x(), -load.force.dot(base), 0.15 * F);
         EXPECT_NEAR(follicle->y(), load.force.dot(normal), 0.15 * F);
@@ -121,6 +138,7 @@ TEST(WhiskerSession, EveryContactFrameHasAFoundLoadAndOnlyFoundLoadsAreReported)
   EXPECT_EQ(fitted.finite, fitted.loads);
   EXPECT_LT(fitted.largest_force_y, 0.0) << "the pole pushes towards −y";
   EXPECT_EQ(fitted.follicle_loads, fitted.loads);
+  EXPECT_EQ(fitted.with_sd, fitted.loads) << "loads with their SDs checked";
   EXPECT_GE(fitted.untouched, 6) << "frames before the pole: the follicle's zero load checked";
 
   options.contact_fit.max_iterations = 1;

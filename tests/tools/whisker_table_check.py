@@ -28,7 +28,8 @@ def main():
             "length_px", "base_angle_deg", "curvature_per_mm", "delta_curvature_per_mm", "m0_N_m",
             "contact", "contact_arc_length_px", "contact_force_x_N", "contact_force_y_N",
             "contact_moment_N_m", "pammer_moment_N_m", "follicle_force_axial_N",
-            "follicle_force_lateral_N"]
+            "follicle_force_lateral_N", "contact_force_sd_N", "contact_moment_sd_N_m",
+            "follicle_force_axial_sd_N", "follicle_force_lateral_sd_N"]
     failures = []
     if list(d.columns) != want:
         failures.append(f"columns {list(d.columns)}, expected {want}")
@@ -73,6 +74,22 @@ def main():
         failures.append("the follicle force is not the contact force's size")
     if (ok.contact_force_x_N.isna() & ok.follicle_force_axial_N.notna() & (ok.contact == 1)).any():
         failures.append("a follicle force on a touching row without a found contact load")
+    # Every found load carries its standard deviations, positive; a follicle force of zero (no
+    # contact) carries zero; and the moment's SD is the force's times the same arm.
+    sds = ["contact_force_sd_N", "contact_moment_sd_N_m", "follicle_force_axial_sd_N",
+           "follicle_force_lateral_sd_N"]
+    if len(loaded) and not (loaded[sds] > 0).all().all():
+        failures.append("a found contact load without positive standard deviations")
+    if ok[ok.contact_force_x_N.isna()][sds[:2]].notna().any().any():
+        failures.append("a contact load SD on a row without a found load")
+    if (ok[ok.contact == 0][sds[2:]].abs() > 0).any().any():
+        failures.append("a row without contact has a follicle force SD other than 0")
+    if len(loaded):
+        force = np.hypot(loaded.contact_force_x_N, loaded.contact_force_y_N)
+        arm = loaded.contact_moment_N_m.abs() / force
+        if not np.allclose(loaded.contact_moment_sd_N_m[force > 0],
+                           (arm * loaded.contact_force_sd_N)[force > 0], rtol=1e-6, atol=0):
+            failures.append("the contact moment's SD is not the force's times its arm")
     # The JSON record of each ok whisker-frame carries the same numbers.
     for _, r in ok.head(50).iterrows():
         w = next(w for w in frames[int(r.frame)] if w["id"] == int(r.id))

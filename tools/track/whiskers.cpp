@@ -257,6 +257,10 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
               nan,
               nan,
               nan,
+              nan,
+              nan,
+              nan,
+              nan,
               nan};
     // Contact with a pole or another object the detection of this frame saw.
     if (sw.contact) {
@@ -288,6 +292,13 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
         values[12] = load.force.y();
         values[13] = load.moment;
         values[14] = load.pammer_moment;
+        if (load.equilibrium) {
+          record["contact_force_sd" + keys.force_unit] = load.force_sd;
+          record["contact_moment_sd" + keys.torque_unit] = load.moment_sd;
+          record["contact_load_noise_px"] = load.noise_px;
+          values[17] = load.force_sd;
+          values[18] = load.moment_sd;
+        }
       }
     }
     // The follicle's load: the contact load's, zero when touching nothing (absent if not known).
@@ -296,6 +307,11 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
       record["follicle_force_lateral" + keys.force_unit] = f->y();
       values[15] = f->x();
       values[16] = f->y();
+      const Eigen::Vector2d sd = *sw.follicle_force_sd();
+      record["follicle_force_axial_sd" + keys.force_unit] = sd.x();
+      record["follicle_force_lateral_sd" + keys.force_unit] = sd.y();
+      values[19] = sd.x();
+      values[20] = sd.y();
     }
   }
   return record;
@@ -404,7 +420,11 @@ std::vector<std::string> value_columns_of(const ReadoutKeys& keys) {
           "contact_moment" + keys.torque_unit,
           "pammer_moment" + keys.torque_unit,
           "follicle_force_axial" + keys.force_unit,
-          "follicle_force_lateral" + keys.force_unit};
+          "follicle_force_lateral" + keys.force_unit,
+          "contact_force_sd" + keys.force_unit,
+          "contact_moment_sd" + keys.torque_unit,
+          "follicle_force_axial_sd" + keys.force_unit,
+          "follicle_force_lateral_sd" + keys.force_unit};
 }
 
 // --csv FILE: the table, written to FILE.tmp (renamed when complete), its header first.
