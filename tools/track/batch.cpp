@@ -47,9 +47,13 @@ int non_negative_int(const JsonCursor& c) {
 }
 
 // One level of options onto the run's arguments: the preset first, then single values over it.
-void apply_options(const JsonCursor& o, WhiskerTrackArgs& a, ExtraOutputs& extra) {
+// `keys`: the keys allowed beside the options (a video's "video" and "out").
+void apply_options(const JsonCursor& o, WhiskerTrackArgs& a, ExtraOutputs& extra,
+                   const std::vector<std::string>& keys = {}) {
   if (!o.value().is_object()) o.fail("must be an object of options");
-  o.expect_keys(kOptionKeys);
+  std::vector<std::string> allowed = kOptionKeys;
+  allowed.insert(allowed.end(), keys.begin(), keys.end());
+  o.expect_keys(allowed);
   rt::WhiskerPhysics& physics = a.readout.physics;
   if (o.has("whisker_preset")) {
     const std::string name = o.at("whisker_preset").string();
@@ -326,7 +330,7 @@ TrackBatchManifest parse_track_batch_manifest(const nlohmann::json& doc, const s
     v.video = video;
     v.args = base;
     ExtraOutputs extra = base_extra;
-    if (entry != nullptr) apply_options(*entry, v.args, extra);
+    if (entry != nullptr) apply_options(*entry, v.args, extra, {"video", "out"});
     v.out_dir = (fs::path(m.out_dir) / out_name).lexically_normal().string();
     const std::string key = fs::weakly_canonical(fs::absolute(v.out_dir)).string();
     const auto [it, inserted] = out_dirs.emplace(key, video);
@@ -343,19 +347,10 @@ TrackBatchManifest parse_track_batch_manifest(const nlohmann::json& doc, const s
     for (std::size_t i = 0; i < videos.array_size(); ++i) {
       const JsonCursor e = videos.at(i);
       if (!e.value().is_object()) e.fail("must be {\"video\": FILE, ...options}");
-      std::vector<std::string> keys = kOptionKeys;
-      keys.push_back("video");
-      keys.push_back("out");
-      e.expect_keys(keys);
       const std::string video = resolve_manifest_path(path, e.at("video"));
       const std::string out = e.has("out") ? e.at("out").string() : fs::path(video).stem().string();
       if (out.empty()) e.at("out").fail("must name a folder (it is empty)");
-      // The entry's options alone (its "video" and "out" are not options).
-      nlohmann::json options = e.value();
-      options.erase("video");
-      options.erase("out");
-      const JsonCursor opts(options, path + " (videos[" + std::to_string(i) + "])");
-      add(video, out, &opts, e);
+      add(video, out, &e, e);
     }
   }
   if (root.has("folder") != root.has("glob")) {
