@@ -334,6 +334,7 @@ class PyWhiskers {
         d[si_ ? "curvature_per_mm" : "curvature_per_px"] = sw.readout->curvature;
         d[si_ ? "delta_curvature_per_mm" : "delta_curvature_per_px"] = sw.readout->delta_curvature;
         d[si_ ? "m0_N_m" : "m0_model"] = sw.readout->moment;
+        if (std::isfinite(sw.moment_sd)) d[si_ ? "m0_sd_N_m" : "m0_sd_model"] = sw.moment_sd;
       }
       if (sw.contact) {
         d["contact"] = sw.contact->touching;

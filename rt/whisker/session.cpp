@@ -82,6 +82,10 @@ std::string WhiskerSession::process(const ImageView& frame) {
     rest_state_.resize(readouts_.size());
     contact_target_.resize(readouts_.size());
     contact_fit_.resize(readouts_.size());
+    quiet_moments_.assign(readouts_.size(),
+                          Eigen::VectorXd::Zero(WhiskerSessionWhisker::kQuietFrames));
+    quiet_count_.assign(readouts_.size(), 0);
+    quiet_scratch_.setZero(WhiskerSessionWhisker::kQuietFrames);
   }
   tracking_seconds_ = tracker_->track(frame);
   // The first frame's fits are the whiskers at rest (Δκ and M0 are changes from them) until the
@@ -137,6 +141,7 @@ std::string WhiskerSession::process(const ImageView& frame) {
       }
       if (out.contact_load) pammer(w, *out.readout, *out.contact, &*out.contact_load);
     }
+    moment_noise(w);
   }
   readout_seconds_ = seconds_since(readout_start);
   // The rest shape: from the rest frame on, frames tracked ok and touching nothing.
@@ -208,6 +213,25 @@ void WhiskerSession::accumulate_rest(int w) {
   if (++rest_count_[w] == options_.rest_frames) {
     take_rest(w, rest_sum_[w] / static_cast<double>(options_.rest_frames));
   }
+}
+
+void WhiskerSession::moment_noise(int w) {
+  WhiskerSessionWhisker& out = whiskers_[w];
+  constexpr int kRing = WhiskerSessionWhisker::kQuietFrames;
+  if (rest_taken_[w] && out.contact && !out.contact->touching) {
+    quiet_moments_[w][quiet_count_[w] % kRing] = std::abs(out.readout->moment);
+    ++quiet_count_[w];
+  }
+  const int n = std::min(quiet_count_[w], kRing);
+  if (n < WhiskerSessionWhisker::kQuietFramesMin) return;
+  // 1.4826 × the median of |M0|: the standard deviation of zero-mean Gaussian noise, robust to
+  // the few frames of a contact the detection did not see.
+  quiet_scratch_.head(n) = quiet_moments_[w].head(n);
+  double* v = quiet_scratch_.data();
+  std::nth_element(v, v + n / 2, v + n);
+  double median = v[n / 2];
+  if (n % 2 == 0) median = 0.5 * (median + *std::max_element(v, v + n / 2));
+  out.moment_sd = 1.4826 * median;
 }
 
 void WhiskerSession::take_rest(int w, const Eigen::VectorXd& u) {

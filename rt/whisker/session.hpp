@@ -64,6 +64,16 @@ struct WhiskerSessionOptions {
 
 /// One whisker on the frame just processed, beside WhiskerTracker::result.
 struct WhiskerSessionWhisker {
+  /// The noise level of readout->moment (M0 from the curvature at the follicle), measured on the
+  /// whisker itself: 1.4826 × the median |M0| over its last kQuietFrames frames tracked ok,
+  /// touching nothing, after its rest frame (nothing but tracking noise bends a whisker that
+  /// touches nothing: whisking turns it about its follicle, which M0 does not see). The same
+  /// noise is in M0 on frames in contact, so it is reported on every frame with a read-out; NaN
+  /// until kQuietFramesMin such frames were seen (or detection, which sees contact, has not run).
+  /// Where |M0| is within a few of it, the M0 column is noise: use the contact load's moment.
+  double moment_sd = std::numeric_limits<double>::quiet_NaN();
+  static constexpr int kQuietFrames = 64;
+  static constexpr int kQuietFramesMin = 10;
   /// The read-out, for a whisker tracked ok (a lost whisker's state would be stale, and one
   /// placed on its detection without a fit has the detection's chords for rotations).
   std::optional<WhiskerReadout> readout;
@@ -178,6 +188,9 @@ class WhiskerSession {
  private:
   void take_rest(int w, const Eigen::VectorXd& u);
   void accumulate_rest(int w);
+  // Adds this frame's M0 to the whisker's quiet ring when it touches nothing after its rest, and
+  // sets its moment_sd.
+  void moment_noise(int w);
   WhiskerSessionWhisker::ContactLoad fit_contact(int w, const WhiskerContact& contact);
   void pammer(int w, const WhiskerReadout& readout, const WhiskerContact& contact,
               WhiskerSessionWhisker::ContactLoad* load) const;
@@ -195,6 +208,10 @@ class WhiskerSession {
   std::vector<Eigen::VectorXd> rest_state_, contact_target_;
   std::vector<std::optional<LoadFit>> contact_fit_;
   std::vector<float> object_distance_;
+  // Per whisker: the last kQuietFrames moments of frames touching nothing (a ring), their count.
+  std::vector<Eigen::VectorXd> quiet_moments_;
+  std::vector<int> quiet_count_;
+  Eigen::VectorXd quiet_scratch_;
   WhiskerAssociation association_;
   int frames_ = 0;
   double tracking_seconds_ = 0.0, redetect_seconds_ = 0.0, readout_seconds_ = 0.0;

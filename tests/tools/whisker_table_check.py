@@ -29,7 +29,7 @@ def main():
             "contact", "contact_arc_length_px", "contact_force_x_N", "contact_force_y_N",
             "contact_moment_N_m", "pammer_moment_N_m", "follicle_force_axial_N",
             "follicle_force_lateral_N", "contact_force_sd_N", "contact_moment_sd_N_m",
-            "follicle_force_axial_sd_N", "follicle_force_lateral_sd_N"]
+            "follicle_force_axial_sd_N", "follicle_force_lateral_sd_N", "m0_sd_N_m"]
     failures = []
     if list(d.columns) != want:
         failures.append(f"columns {list(d.columns)}, expected {want}")
@@ -90,6 +90,18 @@ def main():
         if not np.allclose(loaded.contact_moment_sd_N_m[force > 0],
                            (arm * loaded.contact_force_sd_N)[force > 0], rtol=1e-6, atol=0):
             failures.append("the contact moment's SD is not the force's times its arm")
+    # M0's noise level, measured on each whisker's frames touching nothing: set on ok rows once
+    # enough were seen, never on the others; in the same unit as M0, so that M0 lies within
+    # 3 of it on most frames without contact (where nothing but noise bends the whisker).
+    if others.m0_sd_N_m.notna().any():
+        failures.append("a lost or not-converged row has an M0 SD")
+    with_sd = ok[ok.m0_sd_N_m.notna()]
+    if len(with_sd) < len(ok) // 2 or not (with_sd.m0_sd_N_m > 0).all():
+        failures.append(f"M0 SD set on {len(with_sd)} of {len(ok)} ok rows, or not positive")
+    quiet = with_sd[with_sd.contact == 0]
+    within = (quiet.m0_N_m.abs() <= 3 * quiet.m0_sd_N_m).mean() if len(quiet) else 0.0
+    if within < 0.9:
+        failures.append(f"|M0| within 3 SD on {within:.2f} of the rows without contact")
     # The JSON record of each ok whisker-frame carries the same numbers.
     for _, r in ok.head(50).iterrows():
         w = next(w for w in frames[int(r.frame)] if w["id"] == int(r.id))

@@ -241,6 +241,7 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
     record[keys.curvature] = q.curvature;
     record[keys.delta] = q.delta_curvature;
     record[keys.moment] = q.moment;
+    if (std::isfinite(sw.moment_sd)) record["m0_sd" + keys.torque_unit] = sw.moment_sd;
     values = {r.follicle.x(),
               r.follicle.y(),
               r.tip.x(),
@@ -250,6 +251,7 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
               q.curvature,
               q.delta_curvature,
               q.moment,
+              nan,
               nan,
               nan,
               nan,
@@ -313,6 +315,7 @@ nlohmann::json whisker_record(const rt::WhiskerSession& session, int w, const st
       values[19] = sd.x();
       values[20] = sd.y();
     }
+    values[21] = sw.moment_sd;
   }
   return record;
 }
@@ -424,7 +427,8 @@ std::vector<std::string> value_columns_of(const ReadoutKeys& keys) {
           "contact_force_sd" + keys.force_unit,
           "contact_moment_sd" + keys.torque_unit,
           "follicle_force_axial_sd" + keys.force_unit,
-          "follicle_force_lateral_sd" + keys.force_unit};
+          "follicle_force_lateral_sd" + keys.force_unit,
+          "m0_sd" + keys.torque_unit};
 }
 
 // --csv FILE: the table, written to FILE.tmp (renamed when complete), its header first.
