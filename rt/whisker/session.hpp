@@ -65,7 +65,7 @@ struct WhiskerSessionOptions {
 /// One whisker on the frame just processed, beside WhiskerTracker::result.
 struct WhiskerSessionWhisker {
   /// The noise level of readout->moment (M0 from the curvature at the follicle), measured on the
-  /// whisker itself: 1.4826 × the median |M0| over its last kQuietFrames frames tracked ok,
+  /// whisker itself: the RMS of M0 over its last kQuietFrames frames tracked ok,
   /// touching nothing, after its rest frame (nothing but tracking noise bends a whisker that
   /// touches nothing: whisking turns it about its follicle, which M0 does not see). The same
   /// noise is in M0 on frames in contact, so it is reported on every frame with a read-out; NaN
@@ -208,10 +208,10 @@ class WhiskerSession {
   std::vector<Eigen::VectorXd> rest_state_, contact_target_;
   std::vector<std::optional<LoadFit>> contact_fit_;
   std::vector<float> object_distance_;
-  // Per whisker: the last kQuietFrames moments of frames touching nothing (a ring), their count.
+  // Per whisker: the squared moments of the last kQuietFrames frames touching nothing (a ring),
+  // their count.
   std::vector<Eigen::VectorXd> quiet_moments_;
   std::vector<int> quiet_count_;
-  Eigen::VectorXd quiet_scratch_;
   WhiskerAssociation association_;
   int frames_ = 0;
   double tracking_seconds_ = 0.0, redetect_seconds_ = 0.0, readout_seconds_ = 0.0;
