@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 #include <nlopt.hpp>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -36,6 +37,35 @@ Eigen::MatrixXd rest_matrix(const PlasticElasticEnergy& energy) {
 // exact), ICP markers alternate closest points and fits.
 int rigid_rounds(RegistrationStage stage) {
   return stage == RegistrationStage::kLandmarks ? 1 : 10;
+}
+
+// Σ_k (Σ_t v_tk)² / m = ‖Ψᵀv‖² for v of 6m entries (tet-major; Ψ_k = 1/√m on component k).
+double constant_part_squared(const Eigen::Ref<const Eigen::VectorXd>& v) {
+  const Eigen::Index m = v.size() / 6;
+  if (m == 0) return 0.0;
+  Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+  for (Eigen::Index t = 0; t < m; ++t) sum += v.segment<6>(6 * t);
+  return sum.squaredNorm() / static_cast<double>(m);
+}
+
+// The ν ≥ 0 for which ‖(I + νM)⁻¹b‖ = radius (M symmetric positive definite, ‖b‖ > radius > 0),
+// by bisection on log ν: that norm falls monotonically from ‖b‖ (ν = 0) towards 0.
+double constant_part_damping(const Eigen::Matrix<double, 6, 6>& M,
+                             const Eigen::Matrix<double, 6, 1>& b, double radius) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eigen(M);
+  const Eigen::Matrix<double, 6, 1> lambda = eigen.eigenvalues().cwiseMax(0.0);
+  const Eigen::Matrix<double, 6, 1> c = eigen.eigenvectors().transpose() * b;
+  const auto norm_at = [&](double nu) {
+    return (c.array() / (1.0 + nu * lambda.array())).matrix().norm();
+  };
+  double low = 0.0, high = 1.0;
+  for (int k = 0; k < 200 && norm_at(high) > radius; ++k) high *= 10.0;
+  for (int k = 0; k < 100; ++k) {
+    const double mid = low == 0.0 ? high / 1e3 : std::sqrt(low * high);
+    (norm_at(mid) > radius ? low : high) = mid;
+    if (high <= low * (1.0 + 1e-6)) break;
+  }
+  return high;
 }
 
 // The Jacobian's tangent is the equilibrium's matrix: factorised the same way.
@@ -254,6 +284,9 @@ class Registration {
         std::move(jacobian->Zt), options_.nullspace_damping, damping_floor);
     step.resize(s.size());
     if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
+    double constant_damping = 0.0;  // ν of the constant-strain limit, when it binds
+    if (solved == WoodburyStatus::kOk && damping > 0.0 && options_.constant_strain_step_limit > 0.0)
+      solved = limit_constant_part(damping, step, &constant_damping);
     if (damping > 0.0) step /= 1.0 + damping;
     // The (undamped) quadratic model's decrease for the step: −gᵀΔs − ½ΔsᵀHΔs, where
     // HΔs = −g − μL²Δs, so −½gᵀΔs + ½μ‖LΔs‖² (−½gᵀΔs for the plain step).
@@ -261,6 +294,7 @@ class Registration {
     if (damping > 0.0) {
       const Eigen::VectorXd Ld = laplacian_ * step;
       record.predicted_decrease += 0.5 * damping * Ld.squaredNorm();
+      record.predicted_decrease += 0.5 * constant_damping * constant_part_squared(step);
     }
     record.woodbury_seconds = seconds_since(start);
     if (solved != WoodburyStatus::kOk) {
@@ -286,6 +320,45 @@ class Registration {
       if (ok && dx.allFinite()) predicted_dx_ = std::move(dx);
     }
     return true;
+  }
+
+  // GaussNewtonOptions::constant_strain_step_limit: y solves H̃y = −g (H̃ = L² + Z̃ᵀZ̃ + δΨΨᵀ, the
+  // damped system over 1 + μ; the step is y/(1 + μ)). When the step's mean over the tets is longer
+  // than the limit, y becomes the solution of (H̃ + ν̃ΨΨᵀ)y = −g with the ν̃ that makes it as long
+  // as the limit: y − W(I/ν̃ + ΨᵀW)⁻¹Ψᵀy with W = H̃⁻¹Ψ (six more solves with the same
+  // factorisation); *nu = (1 + μ)ν̃, the damping of Ψ in the step's own scale.
+  WoodburyStatus limit_constant_part(double damping, Eigen::VectorXd& y, double* nu) {
+    const Eigen::Index m = s.size() / 6;
+    const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
+    Eigen::Matrix<double, 6, 1> mean_s = Eigen::Matrix<double, 6, 1>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();  // Ψᵀy
+    for (Eigen::Index t = 0; t < m; ++t) {
+      mean_s += s.segment<6>(6 * t);
+      b += y.segment<6>(6 * t);
+    }
+    mean_s /= static_cast<double>(m);
+    b *= inv_sqrt_m;
+    // ‖mean of the step‖ = ‖Ψᵀy‖/((1 + μ)√m) ≤ limit·‖mean of s‖/√(1 + μ).
+    const double radius =
+        options_.constant_strain_step_limit * mean_s.norm() * std::sqrt(1.0 + damping) / inv_sqrt_m;
+    if (!(b.norm() > radius)) return WoodburyStatus::kOk;
+    Eigen::MatrixXd W(y.size(), 6);
+    Eigen::VectorXd psi = Eigen::VectorXd::Zero(y.size());
+    for (int k = 0; k < 6; ++k) {
+      for (Eigen::Index t = 0; t < m; ++t) psi[6 * t + k] = inv_sqrt_m;
+      const WoodburyStatus status = woodbury_.solve(psi, W.col(k));
+      if (status != WoodburyStatus::kOk) return status;
+      for (Eigen::Index t = 0; t < m; ++t) psi[6 * t + k] = 0.0;
+    }
+    Eigen::Matrix<double, 6, 6> M = Eigen::Matrix<double, 6, 6>::Zero();
+    for (Eigen::Index t = 0; t < m; ++t) M += W.middleRows(6 * t, 6);
+    M *= inv_sqrt_m;
+    M = 0.5 * (M + M.transpose()).eval();
+    const double scaled = constant_part_damping(M, b, radius);  // ν̃
+    const Eigen::Matrix<double, 6, 6> C = Eigen::Matrix<double, 6, 6>::Identity() / scaled + M;
+    y.noalias() -= W * C.ldlt().solve(b);
+    *nu = (1.0 + damping) * scaled;
+    return WoodburyStatus::kOk;
   }
 
   // Whether no tet of x is inverted relative to its rest orientation: the equilibrium solver
@@ -618,16 +691,24 @@ struct LineSearch {
     // Warm start at the linear prediction of the equilibrium (predictor_warm_start); from x
     // itself when there is none or it fails.
     bool solved = false;
+    Eigen::VectorXd inverted;  // the predicted start's equilibrium when it inverts a tet
     if (!projected && trial_dx.size() == x_trial.size()) {
       x_trial.noalias() += eta * trial_dx;
       // The prediction may invert tets, which the solver then need not undo (it only keeps
       // tets that start uninverted so): an equilibrium with an inverted tet is solved again
       // from x. Starting from x alone instead stalled sub-verse023 (34 s per iteration).
-      solved = r.solve_equilibrium(s_trial, x_trial) && r.inverts_no_tet(x_trial);
+      const bool converged = r.solve_equilibrium(s_trial, x_trial);
+      solved = converged && r.inverts_no_tet(x_trial);
+      if (converged && !solved && options.inverted_equilibrium_fallback) inverted = x_trial;
       if (!solved) x_trial = r.x;
     }
-    // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0.
-    if (!solved && !r.solve_equilibrium(s_trial, x_trial)) return 1e300 * (1.0 + eta);
+    // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0; with
+    // inverted_equilibrium_fallback, the inverted equilibrium is taken when x's solve fails.
+    if (!solved && !r.solve_equilibrium(s_trial, x_trial)) {
+      if (inverted.size() == 0) return 1e300 * (1.0 + eta);
+      x_trial = std::move(inverted);
+      ++inverted_equilibria;
+    }
     const double value = r.objective(s_trial, x_trial, terms);
     if (value < best_value) {
       best_value = value;
@@ -654,7 +735,8 @@ struct LineSearch {
   double best_value;
   double best_eta = 0.0;
   Eigen::VectorXd best_x;
-  Eigen::VectorXd trial_dx;  // the equilibrium's predicted move for the trial's step
+  Eigen::VectorXd trial_dx;     // the equilibrium's predicted move for the trial's step
+  int inverted_equilibria = 0;  // trials scored at an inverted equilibrium (fallback)
 };
 
 // The step of one iteration: the Gauss–Newton direction, with the tets whose eigenvalues it would

@@ -70,6 +70,8 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
   }
   if (damped_step_trials < 0 || damped_step_trials > 100)
     return invalid("damped_step_trials", damped_step_trials, "must be in [0, 100]");
+  if (!(constant_strain_step_limit >= 0.0 && std::isfinite(constant_strain_step_limit)))
+    return invalid("constant_strain_step_limit", constant_strain_step_limit, "must be >= 0");
   if (!(damping_start > 0.0 && std::isfinite(damping_start)))
     return invalid("damping_start", damping_start, "must be > 0");
   if (!(damping_growth > 1.0 && std::isfinite(damping_growth)))

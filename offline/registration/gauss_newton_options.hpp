@@ -126,6 +126,17 @@ struct GaussNewtonOptions {
   /// clamped step of the coupled system (L² links neighbouring tets) need not descend even for
   /// large damping. false (the default): clamp and search, as the paper.
   bool hold_clamped_tets = false;
+  /// A trust region on the damped steps' constant-strain part (damped_step_trials): a step at
+  /// damping μ whose mean over the tets (its part along the six constant strains Ψ, which L² does
+  /// not damp) is longer than this fraction of the mean of s, divided by √(1 + μ), gets the
+  /// Marquardt term νΨΨᵀ with the ν that makes it that long; ≥ 0. Without it the damped step
+  /// tends, as μ grows, to the Gauss–Newton step along Ψ instead of to 0 (issue 51,
+  /// docs/registration.md). 0 (the default): no limit.
+  double constant_strain_step_limit = 0.0;
+  /// With predictor_warm_start: when the predicted start's equilibrium inverts a tet and the solve
+  /// from x fails, score the trial at that inverted equilibrium (the stable neo-Hookean energy is
+  /// finite there) instead of as a failure. false (the default): a failure.
+  bool inverted_equilibrium_fallback = false;
   double damping_start = 1.0;
   double damping_growth = 10.0;
   /// Equilibrium solves (line search, initial fit).

@@ -310,6 +310,8 @@ GaussNewtonOptions gauss_newton_options(const RegistrationCase& c, int max_itera
   options.hold_clamped_tets = c.solver.hold_clamped_tets;
   options.icp_no_progress_iterations = c.stop.no_progress_iterations;
   options.eigenvalue_floor = c.solver.eigenvalue_floor;
+  options.constant_strain_step_limit = c.solver.constant_strain_step_limit;
+  options.inverted_equilibrium_fallback = c.solver.inverted_equilibrium_fallback;
   options.equilibrium.cholesky_method = c.solver.cholesky;
   options.woodbury.cholesky_method = c.solver.cholesky;
   if (auto error = options.validate()) throw RegistrationInputError(c.case_path + ": " + *error);

@@ -316,7 +316,8 @@ RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::s
   if (root.has("solver")) {
     const JsonCursor v = root.at("solver");
     v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor", "cholesky",
-                   "hold_clamped_tets"});
+                   "hold_clamped_tets", "constant_strain_step_limit",
+                   "inverted_equilibrium_fallback"});
     if (v.has("cholesky")) {
       const std::string method = v.at("cholesky").string();
       if (method == "auto") {
@@ -341,6 +342,13 @@ RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::s
       c.solver.hold_clamped_tets = v.at("hold_clamped_tets").boolean();
     if (v.has("damped_step_trials"))
       c.solver.damped_step_trials = integer_in(v.at("damped_step_trials"), 0, 100);
+    if (v.has("constant_strain_step_limit")) {
+      const double f = v.at("constant_strain_step_limit").finite_number();
+      if (!(f >= 0)) v.at("constant_strain_step_limit").fail("= " + number(f) + " must be >= 0");
+      c.solver.constant_strain_step_limit = f;
+    }
+    if (v.has("inverted_equilibrium_fallback"))
+      c.solver.inverted_equilibrium_fallback = v.at("inverted_equilibrium_fallback").boolean();
   }
   if (root.has("stop")) {
     const JsonCursor s = root.at("stop");

@@ -368,6 +368,12 @@ nlohmann::json run_identification(const offline::PreparedCase& p,
                                {"cholesky", offline::to_string(cholesky)}};
   for (const double f : options.icp_weight_ramp)
     identification["options"]["icp_weight_ramp"].push_back(hex_double(f));
+  // Issue 51's options only when set, so that checkpoints written without them stay resumable.
+  if (options.constant_strain_step_limit > 0.0)
+    identification["options"]["constant_strain_step_limit"] =
+        hex_double(options.constant_strain_step_limit);
+  if (options.inverted_equilibrium_fallback)
+    identification["options"]["inverted_equilibrium_fallback"] = true;
   return identification;
 }
 

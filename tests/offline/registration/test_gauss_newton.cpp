@@ -531,6 +531,65 @@ TEST(GaussNewton, SmallDecreaseWithMarkersFarFromTheToleranceIsAStall) {
   EXPECT_FALSE(met.summary.failed());
 }
 
+// The trust region on the damped steps' constant-strain part (GaussNewtonOptions::
+// constant_strain_step_limit, issue 51): L² does not damp the six constant strains Ψ, so as μ grows
+// the damped step tends to the Gauss–Newton step along Ψ instead of to 0 (the bunny bulged 2×: a
+// mean change of 0.44 in s at μ = 1e6 whose equilibria all failed). One ICP iteration from the
+// template (s = I, the attachments hold it at rest), resumed after an iteration that took μ = 1e7
+// (so it starts at 1e6): without the limit the step moves the mean of s by over a tenth of the
+// undamped step's mean; with it by η·limit·‖mean of s‖/√(1 + μ) (the limit binds), Φ still
+// falls, and an undamped step is the same bits with or without the limit.
+TEST(GaussNewton, TheConstantStrainLimitShrinksTheDampedStepsMeanToo) {
+  Bar bar = make_bar();
+  ASSERT_TRUE(bar.energy.has_value());
+  const RegistrationConstraints constraints =
+      attached_with_icp_markers(bar, make_truth(bar, 5), 12);
+  auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
+  ASSERT_TRUE(surface_query.has_value());
+  BoundaryClosestPoint closest(*surface_query);
+  const Eigen::Index m = bar.mesh.tets.rows();
+  const Eigen::VectorXd identity = identity_plastic_strains(m);
+  auto one_icp_iteration = [&](double damping_before, int trials, double limit) {
+    GaussNewtonCheckpoint start;
+    start.next_stage = RegistrationStage::kIcpMarkers;
+    start.s = identity;
+    start.x = bar.energy->rest_dofs();
+    GaussNewtonIteration previous;
+    previous.iteration = 1;
+    previous.damping = damping_before;
+    start.iterations = {previous};
+    start.initial_objective = 1.0;
+    GaussNewtonOptions options;
+    options.max_iterations_per_stage = 1;
+    options.damped_step_trials = trials;
+    options.constant_strain_step_limit = limit;
+    return register_attached(*bar.energy, constraints, &closest, options, {}, {}, &start);
+  };
+  auto mean_change = [&](const Eigen::VectorXd& s) {
+    Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+    for (Eigen::Index t = 0; t < m; ++t) sum += s.segment<6>(6 * t) - identity.segment<6>(6 * t);
+    return (sum / static_cast<double>(m)).norm();
+  };
+  const double limit = 0.05;
+  const RegistrationResult plain = one_icp_iteration(0.0, 0, 0.0);
+  const RegistrationResult plain_limited = one_icp_iteration(0.0, 0, limit);
+  const RegistrationResult damped = one_icp_iteration(1e7, 1, 0.0);
+  const RegistrationResult limited = one_icp_iteration(1e7, 1, limit);
+  for (const RegistrationResult* r : {&plain, &plain_limited, &damped, &limited})
+    ASSERT_TRUE(r->summary.usable()) << r->summary.full_report();
+  EXPECT_EQ(plain.s, plain_limited.s);  // μ = 0: untouched
+  const double plain_mean = mean_change(plain.s);
+  ASSERT_GT(plain_mean, 1e-3) << "the undamped step changes the constant strains";
+  const GaussNewtonIteration& it = limited.summary.iterations.back();
+  ASSERT_GE(it.damping, 1e6);
+  ASSERT_GT(it.step, 0.0);
+  EXPECT_GT(mean_change(damped.s), 0.1 * plain_mean);
+  // ‖mean of s‖ = ‖(1, 0, 0, 1, 0, 1)‖ = √3 at the template.
+  const double bound = it.step * limit * std::sqrt(3.0) / std::sqrt(1.0 + it.damping);
+  EXPECT_NEAR(mean_change(limited.s), bound, 1e-6 * bound);
+  EXPECT_LT(it.objective, it.objective_before);
+}
+
 // Attachments far from the template (the far end of a bar twisted by 135° about its axis, as in
 // the Botsch–Sorkine benchmark): the direct first equilibrium fails, the load-stepped one
 // succeeds.
