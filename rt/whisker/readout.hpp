@@ -47,8 +47,8 @@ struct WhiskerPhysics {
   /// scale; they differ between whiskers and animals by factors, so there is no default.
   double base_radius_um = 0.0;
   double tip_radius_um = 0.0;
-  /// Full length of the whisker (the taper's), mm; 0: the tracked length (when the whole whisker is
-  /// in view).
+  /// Full length of the whisker (the taper's), mm; 0: the tracked length here (WhiskerSession
+  /// measures each whisker's instead: rt/whisker/taper_length.hpp).
   double length_mm = 0.0;
 
   bool si() const { return mm_per_px > 0.0; }

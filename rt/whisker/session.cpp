@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "common/timing.hpp"
+#include "rt/whisker/taper_length.hpp"
 
 namespace sinew::rt {
 
@@ -90,8 +91,34 @@ std::string WhiskerSession::process(const ImageView& frame) {
   // The first frame's fits are the whiskers at rest (Δκ and M0 are changes from them) until the
   // rest frame's.
   if (frames_ == 0) {
+    physics_.assign(readouts_.size(), options_.readout.physics);
+    taper_.assign(readouts_.size(), TaperLength{});
     for (int w = 0; w < tracker_->num_whiskers(); ++w) {
-      readouts_[w].set_rest(tracker_->whisker(w).state());
+      const Tracker& t = tracker_->whisker(w);
+      Eigen::Matrix2Xd nodes(2, t.num_nodes());
+      for (int i = 0; i < t.num_nodes(); ++i) nodes.col(i) = t.node_position(i);
+      WhiskerPhysics& ph = physics_[w];
+      // The cone's whole length, where the user gave none: from the whisker's darkness along it
+      // (rt/whisker/taper_length.hpp), else the tracked length as before.
+      if (ph.si() && !(ph.length_mm > 0.0) && ph.base_radius_um > 0.0) {
+        taper_[w] = taper_length(frame, nodes, ph.tip_radius_um / ph.base_radius_um);
+        if (taper_[w].measured) {
+          ph.length_mm = taper_[w].length_px * ph.mm_per_px;
+          WhiskerReadoutOptions ro = options_.readout;
+          ro.physics = ph;
+          WhiskerReadoutModel model(t.model(), ro);
+          if (model.valid()) {
+            readouts_[w] = std::move(model);
+          } else {
+            ph.length_mm = options_.readout.physics.length_mm;
+          }
+        }
+      } else {
+        taper_[w].tracked_px = t.model().total_length();
+        taper_[w].length_px =
+            ph.length_mm > 0.0 && ph.si() ? ph.length_mm / ph.mm_per_px : taper_[w].tracked_px;
+      }
+      readouts_[w].set_rest(t.state());
     }
   }
   ++frames_;
@@ -239,7 +266,7 @@ void WhiskerSession::take_rest(int w, const Eigen::VectorXd& u) {
   if (!options_.contact_load) return;
   LoadFitOptions o = options_.contact_fit;
   o.max_load_points = 1;
-  contact_fit_[w].emplace(contact_fit_beam(t, u, options_.readout.physics), o);
+  contact_fit_[w].emplace(contact_fit_beam(t, u, physics_[w]), o);
   if (!contact_fit_[w]->valid()) contact_fit_[w].reset();
 }
 
@@ -335,7 +362,7 @@ void WhiskerSession::pammer(int w, const WhiskerReadout& readout, const WhiskerC
   double EI = WhiskerTrackerOptions::kModelYoungModulus * h * h * h / 12.0;
   if (ro.physics.si()) {
     const double m_per_px = ro.physics.mm_per_px * 1e-3;
-    EI = ro.physics
+    EI = physics_[w]
              .section_at(window_centre_px * ro.physics.mm_per_px,
                          t.model().total_length() * ro.physics.mm_per_px)
              .EI /

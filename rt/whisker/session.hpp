@@ -15,6 +15,7 @@
 #include "rt/whisker/contact.hpp"
 #include "rt/whisker/detection.hpp"
 #include "rt/whisker/readout.hpp"
+#include "rt/whisker/taper_length.hpp"
 #include "rt/whisker/whisker_tracker.hpp"
 
 namespace sinew::rt {
@@ -33,6 +34,7 @@ std::optional<Redetect> redetect_from_string(const std::string& name);
 inline LoadFitOptions default_contact_fit() {
   LoadFitOptions o;
   o.fit_base_rotation = true;
+  o.max_iterations = 12;
   return o;
 }
 
@@ -173,6 +175,11 @@ class WhiskerSession {
   /// Valid once started().
   const WhiskerTracker& tracker() const { return *tracker_; }
   const WhiskerReadoutModel& readout_model(int w) const { return readouts_[w]; }
+  /// Whisker w's physics as read out (valid once a frame was processed): the options' with, where
+  /// they give an image scale and radii but no length, the whole length measured on the first
+  /// frame (taper(w), rt/whisker/taper_length.hpp), else the tracked length as before.
+  const WhiskerPhysics& physics(int w) const { return physics_[w]; }
+  const TaperLength& taper(int w) const { return taper_[w]; }
 
   /// The frame just processed.
   double tracking_seconds() const { return tracking_seconds_; }
@@ -200,6 +207,8 @@ class WhiskerSession {
   double first_seconds_ = 0.0;
   std::optional<WhiskerTracker> tracker_;
   std::vector<WhiskerReadoutModel> readouts_;
+  std::vector<WhiskerPhysics> physics_;
+  std::vector<TaperLength> taper_;
   std::vector<WhiskerSessionWhisker> whiskers_;
   // Per whisker: the rest state once taken, and the contact-load fit on the rest shape.
   std::vector<char> rest_taken_;

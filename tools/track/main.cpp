@@ -517,7 +517,8 @@ int main(int argc, char** argv) {
   app.add_option("--tip-radius-um", readout.physics.tip_radius_um,
                  "--whiskers: whisker radius at the tip, micrometres (default 0)");
   app.add_option("--whisker-length-mm", readout.physics.length_mm,
-                 "--whiskers: full whisker length for the taper (default: the tracked length)");
+                 "--whiskers: full whisker length for the taper (default: measured per whisker "
+                 "from its darkness along it on the first frame, else the tracked length)");
   app.add_option("--axis-angle-deg", readout.axis_angle_deg,
                  "--whiskers: the head axis in the image, degrees from +x towards +y; base "
                  "angles are measured from it");

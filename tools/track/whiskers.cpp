@@ -160,14 +160,23 @@ nlohmann::json point(const Eigen::Vector2d& p) {
 }
 
 // The first JSON line: what detection found on the first frame, and the read-out's options.
-nlohmann::json detection_line(const rt::WhiskerDetection& found, int index, double detect_ms,
+nlohmann::json detection_line(const rt::WhiskerSession& session, int index, double detect_ms,
                               const rt::WhiskerReadoutOptions& readout) {
+  const rt::WhiskerDetection& found = session.first_detection();
   nlohmann::json record = nlohmann::json::array();
   for (std::size_t w = 0; w < found.whiskers.size(); ++w) {
-    record.push_back({{"id", w},
-                      {"follicle", point(found.whiskers[w].follicle)},
-                      {"length_px", found.whiskers[w].length_px},
-                      {"contrast_percent", found.whiskers[w].contrast_percent}});
+    nlohmann::json whisker = {{"id", w},
+                              {"follicle", point(found.whiskers[w].follicle)},
+                              {"length_px", found.whiskers[w].length_px},
+                              {"contrast_percent", found.whiskers[w].contrast_percent}};
+    // The cone the read-out uses: its whole length, measured from the whisker's darkness where
+    // no length was given (rt/whisker/taper_length.hpp).
+    if (readout.physics.si() && static_cast<int>(w) < session.tracker().num_whiskers()) {
+      whisker["cone_length_mm"] =
+          session.taper(static_cast<int>(w)).length_px * readout.physics.mm_per_px;
+      whisker["cone_length_measured"] = session.taper(static_cast<int>(w)).measured;
+    }
+    record.push_back(whisker);
   }
   return nlohmann::json{
       {"detection",
@@ -483,7 +492,7 @@ int run_whiskers(const WhiskerTrackArgs& args) {
     if (first) {
       const rt::WhiskerDetection& found = session.first_detection();
       detect_ms = session.first_detection_seconds() * 1e3;
-      out << detection_line(found, index, detect_ms, args.readout).dump() << "\n";
+      out << detection_line(session, index, detect_ms, args.readout).dump() << "\n";
       if (!args.quiet) {
         std::cout << "sinew-track: " << found.whiskers.size() << " whiskers found on frame "
                   << index << " (face " << rt::to_string(found.face) << ", ridge noise "
