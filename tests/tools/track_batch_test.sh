@@ -76,7 +76,7 @@ say "uninterrupted: 4 tracked, 1 failed in one line"
 # ---- 3. SIGKILL while a video is halfway, then again
 "$track" --batch resumed.json --jobs 1 >killed.out 2>killed.err &
 batch_pid=$!
-for _ in $(seq 600); do
+for _ in $(seq 2400); do  # up to 120 s for pad1 on a loaded machine
   [[ -f resumed/pad1/done.json && -f resumed/pad2/results.jsonl.tmp ]] && break
   kill -0 "$batch_pid" 2>/dev/null || fail "the batch ended before it could be killed"
   sleep 0.05
