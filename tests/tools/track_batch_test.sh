@@ -7,8 +7,8 @@
 #      one failed) and exactly one error line, naming the corrupt file;
 #   3. the same batch with --jobs 1 killed with SIGKILL while a video is halfway, then run again:
 #      the videos done before the kill are skipped, the one killed halfway is tracked again, and
-#      every video's table (CSV) is byte-identical and its JSON Lines identical but for the timings
-#      to the uninterrupted run's.
+#      every video's table (CSV) is byte-identical, its HDF5 file's datasets equal (with h5py) and
+#      its JSON Lines identical but for the timings to the uninterrupted run's.
 #
 #   track_batch_test.sh SINEW_TRACK SINEW_SYNTH
 set -euo pipefail
@@ -105,10 +105,38 @@ for line in open(sys.argv[1]):
     print(json.dumps(j, sort_keys=True))
 PY
 }
+h5_same() {  # every dataset of two HDF5 files equal (NaN = NaN); 77 without h5py
+  /usr/bin/python3 - "$1" "$2" <<'PY'
+import sys
+try:
+    import h5py
+    import numpy as np
+except ImportError:
+    sys.exit(77)
+a, b = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
+names, other = [], []
+a.visit(names.append)
+b.visit(other.append)
+same = names == other
+for name in names:
+    if same and isinstance(a[name], h5py.Dataset):
+        x, y = a[name][()], b[name][()]
+        if x.dtype.names:  # the summary table: field by field
+            same = all(np.array_equal(x[f], y[f], equal_nan=x[f].dtype.kind == "f")
+                       for f in x.dtype.names)
+        else:
+            same = np.array_equal(x, y, equal_nan=x.dtype.kind == "f")
+sys.exit(0 if same else 1)
+PY
+}
 for v in pad1 pad2 pad3 pad4; do
   cmp -s "reference/$v/whiskers.csv" "resumed/$v/whiskers.csv" || fail "$v: whiskers.csv differs from the uninterrupted run's"
   diff -q <(strip_timings "reference/$v/results.jsonl") <(strip_timings "resumed/$v/results.jsonl") >/dev/null ||
     fail "$v: results.jsonl differs from the uninterrupted run's (timings aside)"
+  if h5_same "reference/$v/whiskers.h5" "resumed/$v/whiskers.h5"; then :; else
+    status=$?
+    ((status == 77)) || fail "$v: whiskers.h5 differs from the uninterrupted run's"
+  fi
   for k in frames whiskers lost_fraction contact_frames; do
     [[ $(field "reference/$v/done.json" $k) == $(field "resumed/$v/done.json" $k) ]] ||
       fail "$v: $k differs in done.json"
