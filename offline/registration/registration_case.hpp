@@ -129,10 +129,13 @@ struct RegistrationCase {
     /// floor real bones meet their markers by squashing tets and the ICP stage stalls.
     double eigenvalue_floor = 0.2;
     /// GaussNewtonOptions::constant_strain_step_limit ("solver": {"constant_strain_step_limit":
-    /// F}); default 0 (off): measured on the bunny bulged 2x, not made the default (issue 51,
-    /// docs/registration.md).
+    /// F}); default 0 (off): with 0.5 and the fallback below the bunny bulged 2x (attached)
+    /// converges where it stalls, but the cactus bulged 2x ends 0.163 mm from the truth instead of
+    /// 0.113 (issue 51, docs/registration.md "Both stalls addressed").
     double constant_strain_step_limit = 0.0;
-    /// GaussNewtonOptions::inverted_equilibrium_fallback; default false (as above).
+    /// GaussNewtonOptions::inverted_equilibrium_fallback ("solver":
+    /// {"inverted_equilibrium_fallback": B}); default false: alone it was not run to the end on
+    /// the bunny (docs/registration.md, as above).
     bool inverted_equilibrium_fallback = false;
     /// Sparse Cholesky method of every factorisation ("solver": {"cholesky": "auto" |
     /// "simplicial" | "supernodal"}; SparseCholeskyMethod). Simplicial has no BLAS, so
