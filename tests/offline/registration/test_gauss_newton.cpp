@@ -11,6 +11,8 @@
 
 #include <gtest/gtest.h>
 
+#include <optional>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
@@ -443,18 +445,29 @@ RegistrationConstraints attached_with_icp_markers(const Bar& bar, const Truth& t
   return constraints;
 }
 
+// The ICP tests' scene: the bar attached at its ends with 12 ICP markers on its 5 % truth, and the
+// closest points on its boundary. A fixture (BoundaryClosestPoint keeps a reference to its query).
+class GaussNewtonIcpBar : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(bar.energy.has_value());
+    constraints = attached_with_icp_markers(bar, make_truth(bar, 5), 12);
+    surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
+    ASSERT_TRUE(surface_query.has_value());
+    boundary.emplace(*surface_query);
+  }
+  Bar bar = make_bar();
+  RegistrationConstraints constraints;
+  std::optional<SurfaceClosestPoint> surface_query;
+  std::optional<BoundaryClosestPoint> boundary;
+};
+
 // The ICP weight ramp (GaussNewtonOptions::icp_weight_ramp): its iterations weigh the markers
 // by the factors (the objective before the first ICP iteration is the smoothness plus factor·the
 // plain run's marker term, at the same state), the stopping tests wait for the full weight, and
 // the stage still ends with its markers met.
-TEST(GaussNewton, IcpWeightRampWeighsTheFirstIterationsLessAndStopsOnlyAtFullWeight) {
-  Bar bar = make_bar();
-  ASSERT_TRUE(bar.energy.has_value());
-  const RegistrationConstraints constraints =
-      attached_with_icp_markers(bar, make_truth(bar, 5), 12);
-  auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
-  ASSERT_TRUE(surface_query.has_value());
-  BoundaryClosestPoint closest(*surface_query);
+TEST_F(GaussNewtonIcpBar, IcpWeightRampWeighsTheFirstIterationsLessAndStopsOnlyAtFullWeight) {
+  BoundaryClosestPoint& closest = *boundary;
   GaussNewtonOptions plain;
   plain.max_iterations_per_stage = 8;
   plain.max_marker_error = 2e-3;  // 2 mm: met after the first full-weight iteration
@@ -495,14 +508,8 @@ TEST(GaussNewton, IcpWeightRampWeighsTheFirstIterationsLessAndStopsOnlyAtFullWei
 // A stall is not convergence (issue 51): a stage that stops by its small-decrease (or small-step)
 // test with the markers on average farther than the marker tolerance ends kStalled, a failure,
 // with a one-line message; without a tolerance (0) the same run ends kSmallDecrease as before.
-TEST(GaussNewton, SmallDecreaseWithMarkersFarFromTheToleranceIsAStall) {
-  Bar bar = make_bar();
-  ASSERT_TRUE(bar.energy.has_value());
-  const RegistrationConstraints constraints =
-      attached_with_icp_markers(bar, make_truth(bar, 5), 12);
-  auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
-  ASSERT_TRUE(surface_query.has_value());
-  BoundaryClosestPoint closest(*surface_query);
+TEST_F(GaussNewtonIcpBar, SmallDecreaseWithMarkersFarFromTheToleranceIsAStall) {
+  BoundaryClosestPoint& closest = *boundary;
   GaussNewtonOptions options;
   options.max_iterations_per_stage = 8;
   // Any iteration that lowers Φ by less than 90 % ends the stage by small-decrease.
@@ -539,14 +546,8 @@ TEST(GaussNewton, SmallDecreaseWithMarkersFarFromTheToleranceIsAStall) {
 // (so it starts at 1e6): without the limit the step moves the mean of s by over a tenth of the
 // undamped step's mean; with it by η·limit·‖mean of s‖/√(1 + μ) (the limit binds), Φ still
 // falls, and an undamped step is the same bits with or without the limit.
-TEST(GaussNewton, TheConstantStrainLimitShrinksTheDampedStepsMeanToo) {
-  Bar bar = make_bar();
-  ASSERT_TRUE(bar.energy.has_value());
-  const RegistrationConstraints constraints =
-      attached_with_icp_markers(bar, make_truth(bar, 5), 12);
-  auto surface_query = SurfaceClosestPoint::create(bar.mesh.rest_positions.rows(), bar.mesh.tets);
-  ASSERT_TRUE(surface_query.has_value());
-  BoundaryClosestPoint closest(*surface_query);
+TEST_F(GaussNewtonIcpBar, TheConstantStrainLimitShrinksTheDampedStepsMeanToo) {
+  BoundaryClosestPoint& closest = *boundary;
   const Eigen::Index m = bar.mesh.tets.rows();
   const Eigen::VectorXd identity = identity_plastic_strains(m);
   auto one_icp_iteration = [&](double damping_before, int trials, double limit) {
