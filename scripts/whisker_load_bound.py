@@ -32,6 +32,11 @@ two with probability Phi(-d'/2) or more. Also per frame: the bound when the foll
 across the whisker is unknown too (a tracker reads it from the whisker itself; the face's edge
 fixes it only along the whisker).
 
+The shared whisker_pad renderer's sequences (--shared-truth truth.json): the same bound with its own
+drawing (its render.py's raster_whisker and 0.5 px blur, imported from --renderer at run time),
+every whisker in contact, the rest the first free frame, σ its truth's noise; with --results,
+sinew-track's contact moment against issue 49's bar (within max(5 %, 2 x that frame's bound)).
+
 Prints one line per contact frame (with --results, the tracker's own error beside it) and a
 summary: on how many contact frames the bound's standard deviation alone exceeds 5 % (moment)
 and 10 % (force).
@@ -39,6 +44,7 @@ and 10 % (force).
 import argparse
 import json
 import math
+import os
 import sys
 
 import numpy as np
@@ -99,16 +105,59 @@ def directions(curve, deflection):
     return [deflection, turn, np.tile(n0, (len(curve), 1))]
 
 
-def information(curve, deflection, contrast, sigma, e=5e-4):
+def information(curve, deflection, contrast, sigma, e=5e-4, drawer=None):
     """J (3 x 3) for (relative load, turn, the follicle's shift across the whisker) of one frame, from
     the drawing itself: the image change of a small step e in each, in units of the noise. Exact
     for the synth's frames (ends, pixel grid and all) to first order. curve: the frame's
-    centreline (n x 2, follicle first); deflection: the load's displacement of each node."""
+    centreline (n x 2, follicle first); deflection: the load's displacement of each node.
+    drawer(curve, box): another renderer's darkening (default: the synth's draw())."""
+    if drawer is None:
+        drawer = lambda c, box: draw(c, contrast, box)  # noqa: E731
     moved = [curve + e * d for d in directions(curve, deflection)]
     box = box_of(np.vstack([curve] + moved))
-    base = draw(curve, contrast, box)
-    columns = np.column_stack([(draw(m, contrast, box) - base).ravel() / e for m in moved])
+    base = drawer(curve, box)
+    columns = np.column_stack([(drawer(m, box) - base).ravel() / e for m in moved])
     return columns.T @ columns / (sigma * sigma)
+
+
+def shared_drawer(renderer_dir):
+    """The shared whisker_pad renderer's own drawing (its render.py's raster_whisker, imported from
+    renderer_dir, not copied), then its 0.5 px Gaussian blur: a whisker's darkening, grey levels,
+    over the box. The curve is its 41 truth nodes (the whole whisker, tip included), resampled every
+    0.5 px as the renderer draws it."""
+    sys.path.insert(0, renderer_dir)
+    import cv2
+    import render  # noqa: E402  (../shared/tools/whisker_pad/render.py)
+
+    def drawer(curve, box):
+        s_nodes = arc_lengths(curve)
+        s = np.linspace(0.0, s_nodes[-1], max(2, int(np.ceil(s_nodes[-1] / 0.5)) + 1))
+        dense = resample(curve, s)
+        img = np.full((render.H, render.W), 200.0)
+        render.raster_whisker(img, np.full_like(img, 200.0), dense, s, s_nodes[-1])
+        img = cv2.GaussianBlur(img, (0, 0), 0.5)
+        x0, y0, x1, y1 = box
+        return (200.0 - img)[max(y0, 0):y1, max(x0, 0):x1]
+    return drawer
+
+
+def shared_sequences(truth_path):
+    """The shared renderer's truth.json as this script's per-whisker frame lists: for every whisker
+    with contact frames, one dict per frame with its centreline, base angle, follicle, contact
+    (point and force vector) and the true M0 (N m, the renderer's sign). Also its noise sigma."""
+    truth = json.load(open(truth_path))
+    ids = sorted({w["id"] for f in truth["frames"] for w in f["whiskers"] if w["contact"]})
+    sequences = {}
+    for wid in ids:
+        seq = []
+        for f in truth["frames"]:
+            w = next(x for x in f["whiskers"] if x["id"] == wid)
+            seq.append({"centreline": w["nodes"], "base_angle_deg": w["base_angle_deg"],
+                        "follicle": w["follicle"], "M0_Nm": w["M0_Nm"],
+                        "contact": ({"point": w["contact_point_px"],
+                                     "force": w["contact_force_vec_N"]} if w["contact"] else None)})
+        sequences[wid] = seq
+    return sequences, float(truth.get("noise_sigma", 4.0))
 
 
 def continuous_information(curve, deflection, contrast, sigma, step=0.25):
@@ -156,15 +205,96 @@ def phi(x):
     return 0.5 * math.erfc(-x / math.sqrt(2.0))
 
 
+def shared_main(args):
+    """The bound per contact frame of the shared renderer's sequence, each whisker in contact, and
+    with --results sinew-track's contact moment against it (issue 49's acceptance: within
+    max(5 %, 2 x that frame's bound), medians within 2 x the median bound)."""
+    sequences, sigma = shared_sequences(args.shared_truth)
+    if args.sigma_given:
+        sigma = args.sigma
+    drawer = shared_drawer(args.renderer)
+    results = {}
+    if args.results:
+        for line in open(args.results):
+            r = json.loads(line)
+            if "frame" in r:
+                results[r["frame"]] = [w for w in r["whiskers"] if w.get("status", "ok") == "ok"]
+    summary = []
+    for wid, seq in sequences.items():
+        rest_k = args.rest_frame if args.rest_frame is not None else next(
+            k for k, w in enumerate(seq) if not w["contact"])
+        rest = seq[rest_k]
+        if rest["contact"]:
+            sys.exit(f"whisker {wid}: rest frame {rest_k} is a contact frame")
+        rest_curve = np.asarray(rest["centreline"], float)
+        rest_local = (rest_curve - rest_curve[0]) @ rotation(rest["base_angle_deg"])
+        print(f"whisker {wid} (rest frame {rest_k}, sigma {sigma})")
+        print("frame  |M0|/peak  bound sd %  d'(1.05/0.95)  tracker %")
+        peak = max(abs(w["M0_Nm"]) for w in seq if w["contact"])
+        for k, w in enumerate(seq):
+            if not w["contact"] or k == rest_k:
+                continue
+            curve = np.asarray(w["centreline"], float)
+            free = curve[0] + rest_local @ rotation(w["base_angle_deg"]).T
+            sd, dprime = bound_from_information(
+                information(curve, curve - free, None, sigma, drawer=drawer))
+            error = None
+            best, best_d = None, 3.0
+            for t in results.get(k, []):
+                nodes = np.asarray(t["nodes"], float)[:, :2]
+                d = float(np.mean(np.min(np.linalg.norm(nodes[:, None, :] - curve[None], axis=2),
+                                         axis=1)))
+                if d < best_d:
+                    best, best_d = t, d
+            if best is not None and best.get("contact_moment_N_m") is not None and w["M0_Nm"]:
+                # Sinew's moment is (x_c - x_0) x F in image axes; the renderer's M0 its negative.
+                error = (-best["contact_moment_N_m"] - w["M0_Nm"]) / abs(w["M0_Nm"])
+            print(f"{k:5d}  {abs(w['M0_Nm']) / peak:8.3f}  {100 * sd:10.2f}  {dprime:13.2f}  "
+                  + ("    –" if error is None else f"{100 * error:+8.1f}"))
+            summary.append((wid, k, sd, error))
+    if not summary:
+        sys.exit("no contact frame")
+    sds = np.array([r[2] for r in summary])
+    print(f"contact whisker-frames: {len(summary)}; bound on the load's relative sd: median "
+          f"{100 * np.median(sds):.2f} %, above 5 % on {int(np.sum(sds > 0.05))}, above 10 % on "
+          f"{int(np.sum(sds > 0.10))}")
+    if results:
+        within = sum(1 for r in summary
+                     if r[3] is not None and abs(r[3]) <= max(0.05, 2.0 * r[2]))
+        errors = [abs(r[3]) for r in summary if r[3] is not None]
+        print(f"tracker: within max(5 %, 2 x bound) on {within} of {len(summary)} "
+              f"({100.0 * within / len(summary):.0f} %; a frame without a load counts as missed); "
+              f"error median {100 * np.median(errors) if errors else math.nan:.1f} % on the "
+              f"{len(errors)} with a load, against 2 x the median bound "
+              f"{200 * np.median(sds):.2f} %")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--truth", required=True)
-    ap.add_argument("--rest-frame", type=int, default=30)
-    ap.add_argument("--sigma", type=float, default=4.0, help="image noise, grey levels")
+    ap.add_argument("--truth", help="sinew-synth's truth.jsonl")
+    ap.add_argument("--shared-truth",
+                    help="the shared whisker_pad renderer's truth.json instead (its drawing is "
+                         "imported from --renderer)")
+    ap.add_argument("--renderer", default=os.path.join(
+        os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "tools", "whisker_pad"),
+                    help="the shared renderer's folder (default ../shared/tools/whisker_pad)")
+    ap.add_argument("--rest-frame", type=int, default=None,
+                    help="default 30 (sinew-synth), the first free frame (shared renderer)")
+    ap.add_argument("--sigma", type=float, default=None,
+                    help="image noise, grey levels (default 4, or the shared truth's)")
     ap.add_argument("--whisker", type=int, default=None,
                     help="true whisker id (default: the one with contact frames)")
     ap.add_argument("--results", help="sinew-track's results: print its moment error beside")
     args = ap.parse_args()
+    args.sigma_given = args.sigma is not None
+    if args.shared_truth:
+        return shared_main(args)
+    if not args.truth:
+        ap.error("give --truth or --shared-truth")
+    if args.rest_frame is None:
+        args.rest_frame = 30
+    if args.sigma is None:
+        args.sigma = 4.0
 
     frames = [json.loads(line) for line in open(args.truth)]
     wid = args.whisker

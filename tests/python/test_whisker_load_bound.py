@@ -102,3 +102,27 @@ def test_no_estimator_reads_the_onsets_to_five_percent(slide):
     # The largest loads: a 5 % reading is allowed by the images (bound below 2 %).
     for frame in (111, 112, 113):
         assert rows[frame][2] < 2.0, (frame, rows[frame])
+
+
+SHARED_RENDERER = os.path.join(ROOT, "..", "shared", "tools", "whisker_pad")
+
+
+@pytest.mark.skipif(not os.path.isfile(os.path.join(SHARED_RENDERER, "render.py")),
+                    reason="../shared/tools/whisker_pad is absent")
+def test_the_shared_renderers_drawing_gives_a_linear_information():
+    """--shared-truth: the information from the shared renderer's own drawing (imported, not
+    copied) is linear in its step (half the step, the same J within 3 %), and a tip load's
+    deflection is told from a turn (J positive definite), on a 200 px whisker bent by a tip load
+    of 3 px."""
+    drawer = wlb.shared_drawer(SHARED_RENDERER)
+    s = np.linspace(0.0, 200.0, 41)
+    curve = np.column_stack([100.0 + s * np.cos(-0.3), 300.0 + s * np.sin(-0.3)])
+    normal = np.array([np.sin(-0.3), -np.cos(-0.3)])
+    shape = (s / 200.0) ** 2 * (3.0 - s / 200.0) / 2.0  # a cantilever's tip-load shape, 1 at the tip
+    deflection = 3.0 * shape[:, None] * normal[None, :]
+    J = wlb.information(curve, deflection, None, 4.0, drawer=drawer)
+    half = wlb.information(curve, deflection, None, 4.0, e=2.5e-4, drawer=drawer)
+    np.testing.assert_allclose(half, J, rtol=0.03, atol=1e-3 * np.max(np.abs(J)))
+    assert np.all(np.linalg.eigvalsh(J) > 0)
+    sd, _ = wlb.bound_from_information(J)
+    assert 0.0 < sd < 0.5, sd
