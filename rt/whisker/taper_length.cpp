@@ -54,6 +54,7 @@ TaperLength taper_length(const ImageView& frame, const Eigen::Matrix2Xd& centrel
   if (n < 2 || !frame.valid()) return out;
 
   std::vector<double> s_at, mass, side;
+  std::vector<float> core;
   Eigen::Index e = 0;
   for (double s = 0.1 * out.tracked_px; s <= out.tracked_px - 2.0; s += kStepPx) {
     while (e + 2 < n && arc[e + 1] < s) ++e;
@@ -63,9 +64,9 @@ TaperLength taper_length(const ImageView& frame, const Eigen::Matrix2Xd& centrel
     const Eigen::Vector2d p = centreline.col(e) + (s - arc[e]) * t;
     const Eigen::Vector2d normal(-t.y(), t.x());
     side.clear();
+    core.clear();
     double deficit = 0.0;
     bool inside = true;
-    std::vector<float> core;
     for (double a = -kOuterPx; a <= kOuterPx + 1e-9 && inside; a += kAcrossStepPx) {
       const Eigen::Vector2d q = p + a * normal;
       float v = 0.0f;
