@@ -23,6 +23,7 @@
 #include "tools/batch/child_processes.hpp"
 #include "tools/batch/manifest_paths.hpp"
 #include "tools/io/json_file.hpp"
+#include "tools/track/whisker_chunks.hpp"
 
 namespace sinew::tools {
 namespace {
@@ -33,11 +34,12 @@ const std::vector<std::string> kOptionKeys = {
     "face",           "min_length_px",     "redetect",       "first",         "count",
     "stride",         "rest_frame",        "rest_frames",    "repair_traces", "mm_per_px",
     "whisker_preset", "young_modulus_gpa", "base_radius_um", "tip_radius_um", "whisker_length_mm",
-    "axis_angle_deg", "overlay",           "plots"};
+    "axis_angle_deg", "overlay",           "plots",          "chunks"};
 
 // What a level of options ("options", a video) sets beyond WhiskerTrackArgs: the optional outputs.
 struct ExtraOutputs {
   bool overlay = false, plots = false;
+  int chunks = 1;
 };
 
 int non_negative_int(const JsonCursor& c) {
@@ -101,6 +103,15 @@ void apply_options(const JsonCursor& o, WhiskerTrackArgs& a, ExtraOutputs& extra
   if (o.has("axis_angle_deg")) a.readout.axis_angle_deg = o.at("axis_angle_deg").finite_number();
   if (o.has("overlay")) extra.overlay = o.at("overlay").boolean();
   if (o.has("plots")) extra.plots = o.at("plots").boolean();
+  if (o.has("chunks")) {
+    extra.chunks = non_negative_int(o.at("chunks"));
+    if (extra.chunks < 1) o.at("chunks").fail("must be at least 1");
+  }
+  if (extra.chunks > 1 && (extra.overlay || extra.plots || a.stride != 1)) {
+    o.fail(
+        "a video tracked in chunks has no overlay or plots and a stride of 1 (its chunks' "
+        "results are stitched; track it in one piece for those)");
+  }
   if (const auto error = a.readout.validate()) o.fail(*error);
 }
 
@@ -126,6 +137,7 @@ void finish_args(TrackBatchVideo& v, const ExtraOutputs& extra) {
   v.args.overlay = extra.overlay ? f.overlay().string() : "";
   v.args.plots = extra.plots ? f.plots().string() : "";
   v.args.quiet = false;  // its own summary goes to its log.txt
+  v.chunks = extra.chunks;
 }
 
 // Writes text to `path` atomically: a reader sees the old file or the whole new one, never half.
@@ -303,6 +315,55 @@ void print_table(const std::vector<TrackBatchRow>& rows) {
   }
 }
 
+// A job of the batch: a whole video, or one chunk of a video tracked in chunks.
+struct BatchUnit {
+  std::size_t video = 0;
+  int chunk = -1;       // -1: the whole video
+  TrackBatchVideo job;  // what the child tracks (a chunk: its frames into its own folder)
+};
+
+// A chunked video's chunks over its frames (--first/--count respected).
+std::vector<WhiskerChunk> chunk_plan(const TrackBatchVideo& v) {
+  const int frames = v.args.count >= 0 ? v.args.count : count_input_frames(v.video) - v.args.first;
+  if (frames <= 0) throw InputError("no frame to track from frame " + std::to_string(v.args.first));
+  std::vector<WhiskerChunk> plan = plan_whisker_chunks(v.args.first, frames, v.chunks);
+  if (v.args.count >= 0) plan.back().count = v.args.first + v.args.count - plan.back().first;
+  return plan;
+}
+
+TrackBatchVideo chunk_job(const TrackBatchVideo& v, const WhiskerChunk& k, int c) {
+  TrackBatchVideo job = v;
+  job.out_dir = (fs::path(v.out_dir) / ("chunk_" + std::to_string(c))).string();
+  finish_args(job, ExtraOutputs{});
+  job.args.first = k.first;
+  job.args.count = k.count;
+  return job;
+}
+
+// Every chunk done: their results stitched into the video's folder, then its done.json. The wall
+// time is the chunks' sum (the work; they ran side by side).
+void finish_chunked(const TrackBatchVideo& v, const std::vector<WhiskerChunk>& plan,
+                    TrackBatchRow& row) {
+  std::vector<std::string> dirs;
+  double seconds = 0.0;
+  for (std::size_t c = 0; c < plan.size(); ++c) {
+    const TrackBatchVideo job = chunk_job(v, plan[c], static_cast<int>(c));
+    const auto done = read_done(job);
+    if (!done) throw InputError(job.out_dir + ": the chunk has no done.json");
+    seconds += done->wall_seconds;
+    dirs.push_back(job.out_dir);
+  }
+  const VideoFiles f{v.out_dir};
+  stitch_whisker_chunks(dirs, plan, f.dir.string(), true, true);
+  row.video = v.video;
+  row.out_dir = v.out_dir;
+  row.wall_seconds = seconds;
+  figures_from_table(f.table(), row);
+  fs::remove(f.failed());
+  write_atomically(f.done(), row_json(row).dump(2) + "\n");
+  row.status = "tracked";
+}
+
 }  // namespace
 
 TrackBatchManifest read_track_batch_manifest(const std::string& path) {
@@ -380,14 +441,34 @@ int run_track_batch(const TrackBatchManifest& manifest, const TrackBatchOptions&
                     std::vector<TrackBatchRow>* rows_out) {
   const std::size_t n = manifest.videos.size();
   std::vector<TrackBatchRow> rows(n);
-  std::vector<std::size_t> to_run;
+  std::vector<BatchUnit> units;                     // the jobs: whole videos and chunks
+  std::vector<std::vector<WhiskerChunk>> plans(n);  // a chunked video's chunks
+  std::vector<int> chunks_left(n, 0);
   std::vector<std::size_t> selected;
   if (options.task) {
     selected.push_back(*options.task);
   } else {
     for (std::size_t i = 0; i < n; ++i) selected.push_back(i);
   }
-  std::size_t skipped = 0;
+  std::size_t skipped = 0, videos_to_run = 0;
+  auto fail = [&](std::size_t i, const std::string& reason) {
+    rows[i].status = "failed: " + reason;
+    const TrackBatchVideo& v = manifest.videos[i];
+    if (v.chunks > 1) {  // a chunk's own failed.json is in its folder; the video's for --gather
+      fs::create_directories(v.out_dir);
+      write_atomically(VideoFiles{v.out_dir}.failed(),
+                       nlohmann::json{{"video", v.video}, {"reason", reason}}.dump() + "\n");
+    }
+    // The one line for a bad video: the file and the reason.
+    fmt::print(stderr, "sinew-track: {}: {}\n", manifest.videos[i].video, reason);
+  };
+  auto stitch = [&](std::size_t i) {
+    try {
+      finish_chunked(manifest.videos[i], plans[i], rows[i]);
+    } catch (const std::exception& e) {
+      fail(i, std::string("stitching its chunks: ") + e.what());
+    }
+  };
   for (const std::size_t i : selected) {
     const TrackBatchVideo& v = manifest.videos[i];
     rows[i].video = v.video;
@@ -398,43 +479,67 @@ int run_track_batch(const TrackBatchManifest& manifest, const TrackBatchOptions&
     } else if (options.gather) {
       const std::string reason = read_failure(v);
       rows[i].status = reason.empty() ? "not run" : "failed: " + reason;
+    } else if (v.chunks <= 1) {
+      units.push_back({i, -1, v});
+      ++videos_to_run;
     } else {
-      to_run.push_back(i);
+      try {
+        plans[i] = chunk_plan(v);
+      } catch (const std::exception& e) {
+        fail(i, e.what());
+        continue;
+      }
+      ++videos_to_run;
+      for (std::size_t c = 0; c < plans[i].size(); ++c) {
+        TrackBatchVideo job = chunk_job(v, plans[i][c], static_cast<int>(c));
+        if (read_done(job)) continue;  // a chunk finished by an earlier run
+        units.push_back({i, static_cast<int>(c), std::move(job)});
+        ++chunks_left[i];
+      }
+      if (chunks_left[i] == 0) stitch(i);
     }
   }
+  std::vector<std::size_t> to_run(units.size());
+  for (std::size_t u = 0; u < units.size(); ++u) to_run[u] = u;
 
   const auto start = std::chrono::steady_clock::now();
-  std::size_t finished = 0, failed = 0;
+  std::size_t finished = 0;
   std::optional<int> task_status;
   if (!options.quiet && !options.gather) {
     fmt::print(stderr,
                "sinew-track --batch {}: {} video{}, {} done earlier (skipped), {} to track with {} "
-               "job{}\n",
+               "job{}{}\n",
                manifest.path, selected.size(), selected.size() == 1 ? "" : "s", skipped,
-               to_run.size(), options.jobs, options.jobs == 1 ? "" : "s");
+               videos_to_run, options.jobs, options.jobs == 1 ? "" : "s",
+               units.size() != videos_to_run
+                   ? fmt::format(" ({} jobs with the chunks)", units.size())
+                   : "");
   }
   run_in_children(
-      to_run, options.jobs, "sinew-track",
-      [&](std::size_t i) { return track_one(manifest.videos[i]); }, nullptr,
-      [&](std::size_t i, const ChildOutcome& o) {
+      to_run, options.jobs, "sinew-track", [&](std::size_t u) { return track_one(units[u].job); },
+      nullptr,
+      [&](std::size_t u, const ChildOutcome& o) {
+        const BatchUnit& unit = units[u];
+        const std::size_t i = unit.video;
         const TrackBatchVideo& v = manifest.videos[i];
         TrackBatchRow& row = rows[i];
         ++finished;
-        task_status = o.task_status();
-        if (o.ok()) {
+        if (unit.chunk < 0) task_status = o.task_status();
+        const bool earlier_failure = row.status.rfind("failed", 0) == 0;
+        if (o.ok() && unit.chunk < 0) {
           if (auto done = read_done(v)) row = *done;
           row.status = "tracked";
-        } else {
-          ++failed;
+        } else if (o.ok()) {
+          if (--chunks_left[i] == 0 && !earlier_failure) stitch(i);
+        } else if (!earlier_failure) {
           std::string reason = describe_abnormal_end(o);
-          if (reason.empty()) reason = read_failure(v);
+          if (reason.empty()) reason = read_failure(unit.job);
           if (reason.empty())
             reason = fmt::format("exit {} (see {})", o.exit_status,
-                                 VideoFiles{v.out_dir}.log().string());
-          row.status = "failed: " + reason;
+                                 VideoFiles{unit.job.out_dir}.log().string());
+          if (unit.chunk >= 0) reason = fmt::format("chunk {}: {}", unit.chunk, reason);
+          fail(i, reason);
           row.wall_seconds = o.seconds;
-          // The one line for a bad video: the file and the reason.
-          fmt::print(stderr, "sinew-track: {}: {}\n", v.video, reason);
         }
         if (!options.quiet) {
           const double elapsed =
@@ -443,12 +548,15 @@ int run_track_batch(const TrackBatchManifest& manifest, const TrackBatchOptions&
           constexpr int kBar = 24;
           const int filled = static_cast<int>(kBar * finished / std::max<std::size_t>(total, 1));
           const double eta = elapsed / finished * static_cast<double>(total - finished);
+          const std::string what =
+              unit.chunk < 0 ? v.video : fmt::format("{} (chunk {})", v.video, unit.chunk);
           fmt::print(stderr, "[{}{}] {}/{} {:.0f} s, ETA {}: {} {}\n", std::string(filled, '#'),
                      std::string(kBar - filled, '.'), finished, total, elapsed,
-                     finished == total ? "done" : format_duration(eta), v.video,
-                     o.ok() ? fmt::format("({} frames, {} whiskers, {:.1f} s)", row.frames,
-                                          row.whiskers, row.wall_seconds)
-                            : "failed");
+                     finished == total ? "done" : format_duration(eta), what,
+                     !o.ok()          ? "failed"
+                     : unit.chunk < 0 ? fmt::format("({} frames, {} whiskers, {:.1f} s)",
+                                                    row.frames, row.whiskers, row.wall_seconds)
+                                      : fmt::format("({:.1f} s)", o.seconds));
         }
       });
 
@@ -473,7 +581,6 @@ int run_track_batch(const TrackBatchManifest& manifest, const TrackBatchOptions&
     if (task_status) return *task_status;
     return selected_rows.front().ok() ? 0 : 1;
   }
-  (void)failed;
   return bad == 0 ? 0 : 1;
 }
 

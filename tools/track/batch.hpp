@@ -14,7 +14,8 @@
 /// videos may share one. Options: face, min_length_px, redetect, first, count, stride, rest_frame,
 /// rest_frames, repair_traces, mm_per_px, whisker_preset, young_modulus_gpa, base_radius_um,
 /// tip_radius_um, whisker_length_mm, axis_angle_deg, overlay (true: overlay.mp4), plots (true:
-/// plots/).
+/// plots/), chunks (N > 1: the video is cut into N chunks tracked as separate jobs, each into
+/// chunk_<k>/, and their results stitched; no overlay, plots or stride then).
 ///
 /// Each video's folder gets results.jsonl, whiskers.csv, whiskers.h5 and log.txt (the run's own
 /// output) and, last, done.json (its summary row, written atomically): a video with done.json is
@@ -40,6 +41,7 @@ struct TrackBatchVideo {
   std::string video;    ///< resolved path (file, image or printf pattern)
   std::string out_dir;  ///< resolved results folder
   WhiskerTrackArgs args;
+  int chunks = 1;  ///< > 1: tracked as this many chunks at once, stitched (whisker_chunks.hpp)
 };
 
 struct TrackBatchManifest {
