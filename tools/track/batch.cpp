@@ -337,6 +337,13 @@ TrackBatchVideo chunk_job(const TrackBatchVideo& v, const WhiskerChunk& k, int c
   finish_args(job, ExtraOutputs{});
   job.args.first = k.first;
   job.args.count = k.count;
+  if (k.first < k.output_from) {
+    // The rest shape within the overlap's first half, so that the overlap's second half measures
+    // the chunk's rest against the stitched one (whisker_chunks.hpp).
+    const int half = (k.output_from - k.first) / 2;
+    job.args.rest_frame = 0;
+    job.args.rest_frames = std::min(job.args.rest_frames, half);
+  }
   return job;
 }
 

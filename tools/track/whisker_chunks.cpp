@@ -223,8 +223,10 @@ std::map<std::pair<int, std::string>, double> rest_offsets(
     const std::map<int, nlohmann::json>& stitched, const ChunkResults& chunk,
     const WhiskerChunk& plan, const ChunkStitch& ids) {
   std::map<std::pair<int, std::string>, std::pair<double, int>> sums;
+  const int from = plan.first + (plan.output_from - plan.first) / 2;
   for (const auto& [frame, line] : chunk.frames) {
     if (frame >= plan.output_from) break;
+    if (frame < from) continue;  // the chunk's rest shape is being set
     const auto s = stitched.find(frame);
     if (s == stitched.end()) continue;
     for (const auto& q : line.at("whiskers")) {
