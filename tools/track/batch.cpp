@@ -22,6 +22,7 @@
 #include "rt/whisker/session.hpp"
 #include "tools/batch/child_processes.hpp"
 #include "tools/batch/manifest_paths.hpp"
+#include "tools/io/csv_fields.hpp"
 #include "tools/io/json_file.hpp"
 #include "tools/track/whisker_chunks.hpp"
 
@@ -160,28 +161,19 @@ void write_atomically(const fs::path& path, const std::string& text) {
   if (ec) throw InputError(path.string() + ": cannot rename " + tmp.string() + ": " + ec.message());
 }
 
-std::vector<std::string> split_csv_line(const std::string& line) {
-  std::vector<std::string> fields;
-  std::string field;
-  std::istringstream in(line);
-  while (std::getline(in, field, ',')) fields.push_back(field);
-  if (!line.empty() && line.back() == ',') fields.emplace_back();
-  return fields;
-}
-
 // The summary row's figures from the video's table (one row per whisker per frame).
 void figures_from_table(const fs::path& table, TrackBatchRow& row) {
   std::ifstream in(table);
   if (!in) throw InputError(table.string() + ": cannot open the table just written");
   std::string line;
   std::getline(in, line);
-  const std::vector<std::string> header = split_csv_line(line);
+  const std::vector<std::string> header = split_csv_fields(line);
   const auto contact_col = std::find(header.begin(), header.end(), "contact") - header.begin();
   std::set<long> frames, contact_frames;
   int max_id = -1;
   long rows = 0, lost = 0;
   while (std::getline(in, line)) {
-    const std::vector<std::string> f = split_csv_line(line);
+    const std::vector<std::string> f = split_csv_fields(line);
     if (f.size() < 3) continue;
     const long frame = std::strtol(f[0].c_str(), nullptr, 10);
     frames.insert(frame);

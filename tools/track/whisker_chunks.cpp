@@ -16,6 +16,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "tools/io/csv_fields.hpp"
 #include "tools/io/json_file.hpp"
 #include "tools/track/whisker_hdf5.hpp"
 
@@ -247,15 +248,6 @@ std::map<std::pair<int, std::string>, double> rest_offsets(
   return offsets;
 }
 
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> f;
-  std::string field;
-  std::istringstream in(line);
-  while (std::getline(in, field, ',')) f.push_back(field);
-  if (!line.empty() && line.back() == ',') f.emplace_back();
-  return f;
-}
-
 std::string read_attribute(hid_t file, const char* name) {
   if (H5Aexists(file, name) <= 0) return "";
   const hid_t a = H5Aopen(file, name, H5P_DEFAULT);
@@ -382,9 +374,9 @@ std::vector<ChunkStitch> stitch_whisker_chunks(const std::vector<std::string>& c
     if (!in) throw InputError(file.string() + ": cannot open a chunk's table");
     std::string line;
     std::getline(in, line);
-    if (c == 0) header = split_csv(line);
+    if (c == 0) header = split_csv_fields(line);
     while (std::getline(in, line)) {
-      std::vector<std::string> f = split_csv(line);
+      std::vector<std::string> f = split_csv_fields(line);
       if (f.size() < 3) continue;
       if (std::stoi(f[0]) < chunks[c].output_from) continue;
       const int id = stitches[c].stitched_id.at(std::stoi(f[1]));
