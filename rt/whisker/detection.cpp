@@ -1,6 +1,7 @@
 #include "rt/whisker/detection.hpp"
 
 #include "common/detail/field_error.hpp"
+#include "rt/whisker/detail/ellipse_dilation.hpp"
 
 #include <Eigen/QR>
 #include <algorithm>
@@ -1018,60 +1019,6 @@ void accept_longest(std::vector<Candidate>& found, const Maps& m, const WhiskerD
   }
 }
 
-// Whether a pixel lies in cv::dilate(mask, MORPH_ELLIPSE of (2 reach + 1)²), asked only where it
-// matters (the dark pixels off the face: the dilation of the whole frame was 10 % of detection).
-// Each row of OpenCV's ellipse is a centred run of half-width w_j, so a pixel is covered when, in
-// the row j − reach away, the nearest set pixel of the mask lies within w_j along the row.
-class EllipseDilation {
- public:
-  EllipseDilation(const cv::Mat& mask, int reach) : reach_(reach) {
-    const cv::Mat kernel =
-        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * reach + 1, 2 * reach + 1));
-    half_.assign(static_cast<std::size_t>(kernel.rows), -1);
-    for (int j = 0; j < kernel.rows; ++j) {
-      const std::uint8_t* k = kernel.ptr<std::uint8_t>(j);
-      int w = k[reach] ? 0 : -1;
-      while (w >= 0 && w < reach && k[reach + w + 1] && k[reach - w - 1]) ++w;
-      for (int x = 0; x < kernel.cols; ++x) {
-        if ((k[x] != 0) != (w >= 0 && std::abs(x - reach) <= w)) {
-          cv::dilate(mask, dilated_, kernel);  // not centred runs: OpenCV's own
-          return;
-        }
-      }
-      half_[static_cast<std::size_t>(j)] = w;
-    }
-    // Per row, the distance along it to the nearest set pixel, capped at 255.
-    along_.create(mask.size(), CV_8U);
-    for (int y = 0; y < mask.rows; ++y) {
-      const std::uint8_t* in = mask.ptr<std::uint8_t>(y);
-      std::uint8_t* d = along_.ptr<std::uint8_t>(y);
-      int last = 255;
-      for (int x = 0; x < mask.cols; ++x) {
-        last = in[x] ? 0 : std::min(last + 1, 255);
-        d[x] = static_cast<std::uint8_t>(last);
-      }
-      last = 255;
-      for (int x = mask.cols - 1; x >= 0; --x) {
-        last = in[x] ? 0 : std::min(last + 1, 255);
-        d[x] = static_cast<std::uint8_t>(std::min<int>(d[x], last));
-      }
-    }
-  }
-  bool covers(int x, int y) const {
-    if (!dilated_.empty()) return dilated_.at<std::uint8_t>(y, x) != 0;
-    for (int j = 0; j <= 2 * reach_; ++j) {
-      const int yy = y + j - reach_;
-      if (yy >= 0 && yy < along_.rows && along_.at<std::uint8_t>(yy, x) <= half_[j]) return true;
-    }
-    return false;
-  }
-
- private:
-  int reach_;
-  std::vector<int> half_;
-  cv::Mat along_, dilated_;
-};
-
 void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetection& result) {
   // What a whisker can touch: dark objects at the light smoothing's sharpness (the heavily
   // smoothed dark mask lies pixels inside a pole's edge: 5.8 px from a whisker pressed against an
@@ -1082,7 +1029,7 @@ void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetect
   cv::compare(m.smooth, dark_threshold(o.object_fraction, result.backlight, result.dark_level),
               objects, cv::CMP_LT);
   const int reach = 2 * static_cast<int>(std::lround(kFixed.pad_band_px)) + 1;
-  const EllipseDilation near_face(m.face, reach);
+  const detail::EllipseDilation near_face(m.face, reach);
   const int object_count = cv::connectedComponents(objects, object_labels, 8, CV_32S);
   std::vector<char> touches_face(static_cast<std::size_t>(object_count), 0);
   for (int y = 0; y < objects.rows; ++y) {
