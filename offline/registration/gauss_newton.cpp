@@ -285,7 +285,8 @@ class Registration {
     step.resize(s.size());
     if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
     double constant_damping = 0.0;  // ν of the constant-strain limit, when it binds
-    if (solved == WoodburyStatus::kOk && damping > 0.0 && options_.constant_strain_step_limit > 0.0)
+    if (solved == WoodburyStatus::kOk && damping > 0.0 && damping >= options_.rescue_min_damping &&
+        options_.constant_strain_step_limit > 0.0)
       solved = limit_constant_part(damping, step, &constant_damping);
     if (damping > 0.0) step /= 1.0 + damping;
     // The (undamped) quadratic model's decrease for the step: −gᵀΔs − ½ΔsᵀHΔs, where
@@ -692,6 +693,7 @@ struct LineSearch {
     // itself when there is none or it fails.
     bool solved = false;
     Eigen::VectorXd inverted;  // the predicted start's equilibrium when it inverts a tet
+    bool scored_inverted = false;
     if (!projected && trial_dx.size() == x_trial.size()) {
       x_trial.noalias() += eta * trial_dx;
       // The prediction may invert tets, which the solver then need not undo (it only keeps
@@ -702,12 +704,25 @@ struct LineSearch {
       if (converged && !solved && options.inverted_equilibrium_fallback) inverted = x_trial;
       if (!solved) x_trial = r.x;
     }
-    // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0; with
-    // inverted_equilibrium_fallback, the inverted equilibrium is taken when x's solve fails.
+    // A failed equilibrium scores "+∞", growing with η so that Brent retreats towards 0. With
+    // inverted_equilibrium_fallback the inverted equilibrium is scored instead on a direction
+    // damped at μ ≥ rescue_min_damping; on a less damped one it is only kept aside (the search
+    // is unchanged) and take_inverted() uses it when no trial lowered Φ.
     if (!solved && !r.solve_equilibrium(s_trial, x_trial)) {
       if (inverted.size() == 0) return 1e300 * (1.0 + eta);
+      if (trial_damping < options.rescue_min_damping) {
+        const double value = r.objective(s_trial, inverted, terms);
+        if (value < inverted_value) {
+          inverted_value = value;
+          inverted_eta = eta;
+          inverted_x = std::move(inverted);
+          inverted_s = s_trial;
+          inverted_projected = projected;
+        }
+        return 1e300 * (1.0 + eta);
+      }
       x_trial = std::move(inverted);
-      ++inverted_equilibria;
+      scored_inverted = true;
     }
     const double value = r.objective(s_trial, x_trial, terms);
     if (value < best_value) {
@@ -716,8 +731,23 @@ struct LineSearch {
       best_x = x_trial;
       best_s = s_trial;
       best_projected = projected;
+      best_inverted = scored_inverted;
     }
     return value;
+  }
+
+  // GaussNewtonOptions::inverted_equilibrium_fallback: when no trial lowered Φ, the best trial
+  // whose only equilibrium inverts a tet, if it lowered Φ. True when the step taken ends at an
+  // inverted equilibrium (this one, or one scored on a direction damped at μ ≥
+  // rescue_min_damping).
+  bool take_inverted() {
+    if (best_eta > 0.0 || !(inverted_value < best_value)) return best_eta > 0.0 && best_inverted;
+    best_value = inverted_value;
+    best_eta = inverted_eta;
+    best_x = std::move(inverted_x);
+    best_s = std::move(inverted_s);
+    best_projected = inverted_projected;
+    return true;
   }
 
   // Brent's search of [0, max_step] (§3.4).
@@ -735,8 +765,14 @@ struct LineSearch {
   double best_value;
   double best_eta = 0.0;
   Eigen::VectorXd best_x;
-  Eigen::VectorXd trial_dx;     // the equilibrium's predicted move for the trial's step
-  int inverted_equilibria = 0;  // trials scored at an inverted equilibrium (fallback)
+  Eigen::VectorXd trial_dx;    // the equilibrium's predicted move for the trial's step
+  double trial_damping = 0.0;  // μ of the trial's direction
+  // The best trial whose equilibrium inverts a tet (inverted_equilibrium_fallback).
+  double inverted_value = kInfinity;
+  double inverted_eta = 0.0;
+  bool inverted_projected = false;
+  Eigen::VectorXd inverted_x, inverted_s;
+  bool best_inverted = false;  // the best state is an inverted equilibrium
 };
 
 // The step of one iteration: the Gauss–Newton direction, with the tets whose eigenvalues it would
@@ -777,6 +813,7 @@ bool damped_step_trials(LineSearch& ls, RegistrationStage stage, double before, 
           clamp_plastic_state_eigenvalues(target, options.eigenvalue_floor).clamped_tets);
     }
     record.damping = damping;
+    ls.trial_damping = damping;
     ls.trial_dx = r.predicted_dx();
     ls.direction = step;
     step = target - r.s;
@@ -908,6 +945,7 @@ IterationEnd gauss_newton_iteration(Registration& r, RegistrationStage stage, in
     record.projected_search = true;
     ls.search();
   }
+  record.inverted_equilibrium = ls.take_inverted();
   record.line_search_seconds = seconds_since(search_start);
   record.equilibrium_solves = r.equilibrium_solves - solves_before;
   const bool took_step = ls.best_eta > 0.0;

@@ -24,6 +24,9 @@ struct GaussNewtonIteration {
   int equilibrium_solves = 0;
   int clamped_tets = 0;           ///< tets whose Fp eigenvalues were clamped
   bool projected_search = false;  ///< the projected-path search ran (projected_search_fallback)
+  /// The step taken ends at an equilibrium with an inverted tet
+  /// (GaussNewtonOptions::inverted_equilibrium_fallback).
+  bool inverted_equilibrium = false;
   /// μ of the step taken (GaussNewtonOptions::damped_step_trials); 0: the plain Gauss–Newton step.
   double damping = 0.0;
   double jacobian_seconds = 0.0;  ///< tangent factorisation + Z

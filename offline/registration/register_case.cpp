@@ -311,6 +311,7 @@ GaussNewtonOptions gauss_newton_options(const RegistrationCase& c, int max_itera
   options.icp_no_progress_iterations = c.stop.no_progress_iterations;
   options.eigenvalue_floor = c.solver.eigenvalue_floor;
   options.constant_strain_step_limit = c.solver.constant_strain_step_limit;
+  options.rescue_min_damping = c.solver.rescue_min_damping;
   options.inverted_equilibrium_fallback = c.solver.inverted_equilibrium_fallback;
   options.equilibrium.cholesky_method = c.solver.cholesky;
   options.woodbury.cholesky_method = c.solver.cholesky;

@@ -129,15 +129,13 @@ struct RegistrationCase {
     /// floor real bones meet their markers by squashing tets and the ICP stage stalls.
     double eigenvalue_floor = 0.2;
     /// GaussNewtonOptions::constant_strain_step_limit ("solver": {"constant_strain_step_limit":
-    /// F}); default 0 (off): with 0.5 and the fallback below the bunny bulged 2x (attached)
-    /// converges where it stalls, but the cactus bulged 2x ends 0.163 mm from the truth instead of
-    /// 0.113 (issue 51, docs/registration.md "Both stalls addressed").
-    double constant_strain_step_limit = 0.0;
-    /// GaussNewtonOptions::inverted_equilibrium_fallback ("solver":
-    /// {"inverted_equilibrium_fallback": B}); default false: alone the bunny bulge converges too,
-    /// but the bunny twisted 45 deg (attached) ends 0.382 mm from the truth instead of 0.087
-    /// (docs/registration.md, as above).
-    bool inverted_equilibrium_fallback = false;
+    /// F}) and inverted_equilibrium_fallback ({"inverted_equilibrium_fallback": B}), both acting
+    /// on directions damped at μ ≥ rescue_min_damping ({"rescue_min_damping": F}); defaults 0.5,
+    /// true and 1e3: the bunny bulged 2x (attached) converges where it stalled, and the rows that
+    /// converged are unchanged (issue 51, docs/registration.md "Both stalls addressed").
+    double constant_strain_step_limit = 0.5;
+    bool inverted_equilibrium_fallback = true;
+    double rescue_min_damping = 1e3;
     /// Sparse Cholesky method of every factorisation ("solver": {"cholesky": "auto" |
     /// "simplicial" | "supernodal"}; SparseCholeskyMethod). Simplicial has no BLAS, so
     /// the run is the same with every OpenBLAS kernel and thread count (tests/tools/

@@ -316,7 +316,7 @@ RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::s
   if (root.has("solver")) {
     const JsonCursor v = root.at("solver");
     v.expect_keys({"damped_step_trials", "predictor_warm_start", "eigenvalue_floor", "cholesky",
-                   "hold_clamped_tets", "constant_strain_step_limit",
+                   "hold_clamped_tets", "constant_strain_step_limit", "rescue_min_damping",
                    "inverted_equilibrium_fallback"});
     if (v.has("cholesky")) {
       const std::string method = v.at("cholesky").string();
@@ -346,6 +346,11 @@ RegistrationCase parse_registration_case(const nlohmann::json& doc, const std::s
       const double f = v.at("constant_strain_step_limit").finite_number();
       if (!(f >= 0)) v.at("constant_strain_step_limit").fail("= " + number(f) + " must be >= 0");
       c.solver.constant_strain_step_limit = f;
+    }
+    if (v.has("rescue_min_damping")) {
+      const double f = v.at("rescue_min_damping").finite_number();
+      if (!(f >= 0)) v.at("rescue_min_damping").fail("= " + number(f) + " must be >= 0");
+      c.solver.rescue_min_damping = f;
     }
     if (v.has("inverted_equilibrium_fallback"))
       c.solver.inverted_equilibrium_fallback = v.at("inverted_equilibrium_fallback").boolean();

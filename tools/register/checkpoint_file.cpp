@@ -88,6 +88,7 @@ nlohmann::json iteration_json(const GaussNewtonIteration& it) {
           {"equilibrium_solves", it.equilibrium_solves},
           {"clamped_tets", it.clamped_tets},
           {"projected_search", it.projected_search},
+          {"inverted_equilibrium", it.inverted_equilibrium},
           {"damping", hex_double(it.damping)},
           {"jacobian_seconds", hex_double(it.jacobian_seconds)},
           {"woodbury_seconds", hex_double(it.woodbury_seconds)},
@@ -110,6 +111,9 @@ GaussNewtonIteration read_iteration(const JsonCursor& j) {
   it.clamped_tets = static_cast<int>(j.at("clamped_tets").integer());
   // Absent in checkpoints written before the projected-search fallback existed.
   if (j.has("projected_search")) it.projected_search = j.at("projected_search").boolean();
+  // Absent in checkpoints written before the inverted-equilibrium fallback existed.
+  if (j.has("inverted_equilibrium"))
+    it.inverted_equilibrium = j.at("inverted_equilibrium").boolean();
   // Absent in checkpoints written before the damped steps existed (undamped).
   if (j.has("damping")) it.damping = real("damping");
   it.jacobian_seconds = real("jacobian_seconds");
@@ -374,6 +378,8 @@ nlohmann::json run_identification(const offline::PreparedCase& p,
         hex_double(options.constant_strain_step_limit);
   if (options.inverted_equilibrium_fallback)
     identification["options"]["inverted_equilibrium_fallback"] = true;
+  if (options.constant_strain_step_limit > 0.0 || options.inverted_equilibrium_fallback)
+    identification["options"]["rescue_min_damping"] = hex_double(options.rescue_min_damping);
   return identification;
 }
 

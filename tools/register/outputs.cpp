@@ -75,6 +75,7 @@ nlohmann::json iterations_json(const std::vector<offline::GaussNewtonIteration>&
                           {"clamped_tets", it.clamped_tets},
                           {"damping", it.damping},
                           {"projected_search", it.projected_search},
+                          {"inverted_equilibrium", it.inverted_equilibrium},
                           {"jacobian_seconds", it.jacobian_seconds},
                           {"woodbury_seconds", it.woodbury_seconds},
                           {"line_search_seconds", it.line_search_seconds},

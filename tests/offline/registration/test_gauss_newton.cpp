@@ -550,7 +550,8 @@ TEST_F(GaussNewtonIcpBar, TheConstantStrainLimitShrinksTheDampedStepsMeanToo) {
   BoundaryClosestPoint& closest = *boundary;
   const Eigen::Index m = bar.mesh.tets.rows();
   const Eigen::VectorXd identity = identity_plastic_strains(m);
-  auto one_icp_iteration = [&](double damping_before, int trials, double limit) {
+  auto one_icp_iteration = [&](double damping_before, int trials, double limit,
+                               double min_damping = 0.0) {
     GaussNewtonCheckpoint start;
     start.next_stage = RegistrationStage::kIcpMarkers;
     start.s = identity;
@@ -564,6 +565,7 @@ TEST_F(GaussNewtonIcpBar, TheConstantStrainLimitShrinksTheDampedStepsMeanToo) {
     options.max_iterations_per_stage = 1;
     options.damped_step_trials = trials;
     options.constant_strain_step_limit = limit;
+    options.rescue_min_damping = min_damping;
     return register_attached(*bar.energy, constraints, &closest, options, {}, {}, &start);
   };
   auto mean_change = [&](const Eigen::VectorXd& s) {
@@ -589,6 +591,15 @@ TEST_F(GaussNewtonIcpBar, TheConstantStrainLimitShrinksTheDampedStepsMeanToo) {
   const double bound = it.step * limit * std::sqrt(3.0) / std::sqrt(1.0 + it.damping);
   EXPECT_NEAR(mean_change(limited.s), bound, 1e-6 * bound);
   EXPECT_LT(it.objective, it.objective_before);
+  // The limit acts only on steps damped at μ ≥ rescue_min_damping: from
+  // 1e8 on it leaves these steps (μ = 1e6 or 1e7) the same bits as without it, from 1e6 on it
+  // binds as above.
+  const RegistrationResult below = one_icp_iteration(1e7, 1, limit, 1e8);
+  const RegistrationResult from = one_icp_iteration(1e7, 1, limit, 1e6);
+  ASSERT_TRUE(below.summary.usable()) << below.summary.full_report();
+  ASSERT_TRUE(from.summary.usable()) << from.summary.full_report();
+  EXPECT_EQ(below.s, damped.s);
+  EXPECT_EQ(from.s, limited.s);
 }
 
 // Attachments far from the template (the far end of a bar twisted by 135° about its axis, as in
