@@ -130,11 +130,13 @@ struct RegistrationCase {
     double eigenvalue_floor = 0.2;
     /// GaussNewtonOptions::constant_strain_step_limit ("solver": {"constant_strain_step_limit":
     /// F}) and inverted_equilibrium_fallback ({"inverted_equilibrium_fallback": B}), both acting
-    /// on directions damped at μ ≥ rescue_min_damping ({"rescue_min_damping": F}); defaults 0.5,
-    /// true and 1e3: the bunny bulged 2x (attached) converges where it stalled, and the rows that
-    /// converged are unchanged (issue 51, docs/registration.md "Both stalls addressed").
-    double constant_strain_step_limit = 0.5;
-    bool inverted_equilibrium_fallback = true;
+    /// on directions damped at μ ≥ rescue_min_damping ({"rescue_min_damping": F}); defaults off
+    /// (0, false; 1e3). With 0.5 and true the bunny bulged 2x (attached) converges where it
+    /// stalls and the rows that converge are unchanged, but the bunny bent 90° (attached) then
+    /// reaches a step with 705 clamped tets held and was killed for memory (22 GB) where it
+    /// stalls with a report (issue 51, docs/registration.md "Default-safe").
+    double constant_strain_step_limit = 0.0;
+    bool inverted_equilibrium_fallback = false;
     double rescue_min_damping = 1e3;
     /// Sparse Cholesky method of every factorisation ("solver": {"cholesky": "auto" |
     /// "simplicial" | "supernodal"}; SparseCholeskyMethod). Simplicial has no BLAS, so
