@@ -6,7 +6,8 @@
 #      with curves within 0.5 px (no border frame disagrees: N = 0 here), no whisker missing; the
 #      stitched table has every frame and id once, and the HDF5 file every frame;
 #   3. the video's done.json removed: a rerun only stitches again (its chunks are done) and
-#      writes byte-identical results;
+#      writes byte-identical results; a damaged line in a chunk's results fails that video with
+#      the file and line named, the other videos stay done;
 #   4. chunks with an overlay: the manifest is refused in one line naming "chunks".
 #
 #   track_chunks_test.sh SINEW_TRACK SINEW_SYNTH SOURCE_DIR
@@ -68,6 +69,19 @@ rm res/two1/done.json
 grep -q '(chunk [0-9]*)' rerun.err && fail "rerun tracked a chunk again: $(cat rerun.err)"
 cmp -s first.jsonl res/two1/results.jsonl || fail "rerun's stitched results differ"
 say "rerun: stitched again from the done chunks, identical results"
+
+# ---- 3b. a damaged chunk's line is named (file and line) in the video's failed row, the others done
+cp -r res/two1 keep_two1
+sed -i '5s/.*/{"frame": 3, "whisk/' res/two1/chunk_1/results.jsonl
+rm res/two1/done.json
+status=0
+"$track" --batch m.json >damaged.out 2>damaged.err || status=$?
+[[ $status == 1 ]] || fail "a damaged chunk: exit status $status (want 1)"
+grep -q 'chunk_1/results.jsonl:5: not JSON' res/summary.csv ||
+  fail "the damaged chunk's file and line not in the summary: $(cat res/summary.csv)"
+[[ $(grep -c ',done earlier$' res/summary.csv) == 3 ]] || fail "not 3 done beside it: $(cat res/summary.csv)"
+rm -rf res/two1 && mv keep_two1 res/two1
+say "damaged chunk: $(grep -o 'chunk_1/results.jsonl:5: not JSON' res/summary.csv)"
 
 # ---- 4. chunks with an overlay are refused
 sed 's/"chunks": 2}/"chunks": 2, "overlay": true}/' m.json >bad.json

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/videoio.hpp>
 #include <sstream>
@@ -26,40 +27,56 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 
-// One chunk's results: the detection line and the frame lines by frame index.
-struct ChunkResults {
-  nlohmann::json detection;
-  std::map<int, nlohmann::json> frames;
+// One chunk's results.jsonl, a line at a time: its detection line, then its frame lines in order
+// of frame (as sinew-track writes them). Only what the stitching needs is ever held: a long
+// high-speed recording's results do not fit in memory as JSON values (~14 bytes per byte of text).
+class ChunkLines {
+ public:
+  explicit ChunkLines(fs::path file) : file_(std::move(file)), in_(file_) {
+    if (!in_) throw InputError(file_.string() + ": cannot open a chunk's results");
+    if (!read(detection_) || !detection_.contains("detection"))
+      throw InputError(where() + ": no detection line before the frames");
+  }
+  const nlohmann::json& detection() const { return detection_; }
+  /// The next frame line and its frame; false at the end.
+  bool next(nlohmann::json& line, int& frame) {
+    if (!read(line)) return false;
+    if (!line.contains("frame") || !line.contains("whiskers"))
+      throw InputError(where() + ": not a frame line");
+    frame = line.at("frame").get<int>();
+    if (frame <= last_frame_)
+      throw InputError(where() + ": frame " + std::to_string(frame) + " after frame " +
+                       std::to_string(last_frame_));
+    last_frame_ = frame;
+    return true;
+  }
+
+ private:
+  std::string where() const { return file_.string() + ":" + std::to_string(number_); }
+  bool read(nlohmann::json& j) {
+    std::string text;
+    while (std::getline(in_, text)) {
+      ++number_;
+      if (text.empty()) continue;
+      try {
+        j = nlohmann::json::parse(text);
+      } catch (const std::exception& e) {
+        throw InputError(where() + ": not JSON: " + e.what());
+      }
+      return true;
+    }
+    return false;
+  }
+
+  fs::path file_;
+  std::ifstream in_;
+  nlohmann::json detection_;
+  int number_ = 0;
+  int last_frame_ = std::numeric_limits<int>::min();
 };
 
-ChunkResults read_chunk(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in) throw InputError(file.string() + ": cannot open a chunk's results");
-  ChunkResults r;
-  std::string line;
-  int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    if (line.empty()) continue;
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(line);
-    } catch (const std::exception& e) {
-      throw InputError(file.string() + ":" + std::to_string(number) + ": not JSON: " + e.what());
-    }
-    if (j.contains("detection")) {
-      r.detection = std::move(j);
-    } else if (j.contains("frame") && j.contains("whiskers")) {
-      const int frame = j.at("frame").get<int>();  // before j is moved into the map
-      r.frames[frame] = std::move(j);
-    } else {
-      throw InputError(file.string() + ":" + std::to_string(number) +
-                       ": neither a detection nor a frame line");
-    }
-  }
-  if (r.detection.is_null()) throw InputError(file.string() + ": no detection line");
-  return r;
-}
+// Frame lines by frame index.
+using FrameLines = std::map<int, nlohmann::json>;
 
 using Curve = std::vector<std::array<double, 2>>;
 
@@ -111,7 +128,6 @@ bool tracked(const nlohmann::json& w) {
   return s != "lost" && !w.at("nodes").empty();
 }
 
-// Stitched ids for chunk c's whiskers from the stitched frames over the overlap's second half.
 // A follicle's position along the face edge: y for a face on the left or right, else x.
 double along_face(const nlohmann::json& whisker, bool vertical_edge) {
   return whisker.at("follicle")[vertical_edge ? 1 : 0].get<double>();
@@ -120,21 +136,14 @@ double along_face(const nlohmann::json& whisker, bool vertical_edge) {
 // Whiskers of the chunk that no stitched whisker's curve matched over the overlap (the stitched
 // one was not tracked there: a chunk before this one did not find it): by follicle order along the
 // face, which whiskers keep. A chunk whisker whose nearest matched neighbours on either side along
-// the face enclose exactly one free stitched id (at its last tracked frame) takes that id.
-void match_by_order(const std::map<int, nlohmann::json>& stitched, const ChunkResults& chunk,
-                    const WhiskerChunk& plan, bool vertical_edge, ChunkStitch& m,
-                    std::vector<bool>& taken) {
-  std::map<int, double> last;  // stitched id → its follicle along the face when last tracked
-  for (auto it = stitched.begin(); it != stitched.end() && it->first < plan.output_from; ++it) {
-    for (const auto& w : it->second.at("whiskers")) {
-      if (tracked(w)) last[w.at("id").get<int>()] = along_face(w, vertical_edge);
-    }
-  }
-  const auto line = chunk.frames.lower_bound(plan.output_from);
-  if (line == chunk.frames.begin()) return;
+// the face enclose exactly one free stitched id (at its last tracked frame, `last`) takes that id.
+// `overlap`: the chunk's frames before its output_from.
+void match_by_order(const std::map<int, double>& last, const FrameLines& overlap,
+                    bool vertical_edge, ChunkStitch& m, std::vector<bool>& taken) {
+  if (overlap.empty()) return;
   std::vector<std::pair<double, int>>
       order;  // (along the face, chunk id) on its last overlap frame
-  for (const auto& w : std::prev(line)->second.at("whiskers")) {
+  for (const auto& w : overlap.rbegin()->second.at("whiskers")) {
     if (tracked(w)) order.emplace_back(along_face(w, vertical_edge), w.at("id").get<int>());
   }
   std::sort(order.begin(), order.end());
@@ -145,14 +154,14 @@ void match_by_order(const std::map<int, nlohmann::json>& stitched, const ChunkRe
     for (std::size_t j = k; j-- > 0;) {
       const int p = m.stitched_id[order[j].second];
       if (p >= 0 && last.count(p)) {
-        lo = last[p];
+        lo = last.at(p);
         break;
       }
     }
     for (std::size_t j = k + 1; j < order.size(); ++j) {
       const int p = m.stitched_id[order[j].second];
       if (p >= 0 && last.count(p)) {
-        hi = last[p];
+        hi = last.at(p);
         break;
       }
     }
@@ -167,14 +176,15 @@ void match_by_order(const std::map<int, nlohmann::json>& stitched, const ChunkRe
   }
 }
 
-ChunkStitch match_ids(const std::map<int, nlohmann::json>& stitched, const ChunkResults& chunk,
-                      const WhiskerChunk& plan, bool vertical_edge, int& next_id) {
+// Stitched ids for the chunk's whiskers (ids 0 .. chunk_ids − 1) from the stitched frames over the
+// overlap's second half (`stitched`: the stitched frames before the chunk's output_from, at least
+// those of its overlap; `overlap`: the chunk's own frames there).
+ChunkStitch match_ids(const FrameLines& stitched, const FrameLines& overlap, int chunk_ids,
+                      const std::map<int, double>& last, const WhiskerChunk& plan,
+                      bool vertical_edge, int& next_id) {
   const int from = plan.first + (plan.output_from - plan.first) / 2;
   std::map<std::pair<int, int>, std::pair<double, int>> sums;  // (chunk id, stitched id)
-  int chunk_ids = 0;
-  for (const auto& [frame, line] : chunk.frames) {
-    for (const auto& w : line.at("whiskers"))
-      chunk_ids = std::max(chunk_ids, w.at("id").get<int>() + 1);
+  for (const auto& [frame, line] : overlap) {
     if (frame < from || frame >= plan.output_from) continue;
     const auto s = stitched.find(frame);
     if (s == stitched.end()) continue;
@@ -206,7 +216,7 @@ ChunkStitch match_ids(const std::map<int, nlohmann::json>& stitched, const Chunk
     m.distance_px[q] = d;
     taken[p] = true;
   }
-  match_by_order(stitched, chunk, plan, vertical_edge, m, taken);
+  match_by_order(last, overlap, vertical_edge, m, taken);
   for (int& id : m.stitched_id) {
     if (id < 0) id = next_id++;
   }
@@ -218,14 +228,15 @@ bool is_rest_relative(const std::string& key) {
          (key.rfind("m0_", 0) == 0 && key.find("_sd") == std::string::npos);
 }
 
+using RestOffsets = std::map<std::pair<int, std::string>, double>;
+
 // Per stitched id and rest-relative key, the mean of (stitched − chunk) over the overlap frames
 // where both have it: the two rest shapes' difference, added to the chunk's values.
-std::map<std::pair<int, std::string>, double> rest_offsets(
-    const std::map<int, nlohmann::json>& stitched, const ChunkResults& chunk,
-    const WhiskerChunk& plan, const ChunkStitch& ids) {
+RestOffsets rest_offsets(const FrameLines& stitched, const FrameLines& overlap,
+                         const WhiskerChunk& plan, const ChunkStitch& ids) {
   std::map<std::pair<int, std::string>, std::pair<double, int>> sums;
   const int from = plan.first + (plan.output_from - plan.first) / 2;
-  for (const auto& [frame, line] : chunk.frames) {
+  for (const auto& [frame, line] : overlap) {
     if (frame >= plan.output_from) break;
     if (frame < from) continue;  // the chunk's rest shape is being set
     const auto s = stitched.find(frame);
@@ -243,9 +254,21 @@ std::map<std::pair<int, std::string>, double> rest_offsets(
       }
     }
   }
-  std::map<std::pair<int, std::string>, double> offsets;
+  RestOffsets offsets;
   for (const auto& [k, acc] : sums) offsets[k] = acc.first / acc.second;
   return offsets;
+}
+
+// A chunk's frame line with its ids and rest-relative values stitched.
+void stitch_line(nlohmann::json& line, const ChunkStitch& ids, const RestOffsets& offsets) {
+  for (auto& w : line.at("whiskers")) {
+    const int id = ids.stitched_id.at(w.at("id").get<int>());
+    w["id"] = id;
+    for (auto& [key, value] : w.items()) {
+      const auto o = offsets.find({id, key});
+      if (o != offsets.end() && value.is_number()) value = value.get<double>() + o->second;
+    }
+  }
 }
 
 std::string read_attribute(hid_t file, const char* name) {
@@ -300,50 +323,77 @@ std::vector<ChunkStitch> stitch_whisker_chunks(const std::vector<std::string>& c
                                                const std::vector<WhiskerChunk>& chunks,
                                                const std::string& out_dir, bool table, bool hdf5) {
   const fs::path out(out_dir);
-  std::map<int, nlohmann::json> stitched;  // frame → line, stitched ids
+  const std::size_t n = chunk_dirs.size();
+  // The first frame a chunk does not contribute: the next chunk's output_from.
+  const auto end_of = [&](std::size_t c) {
+    return c + 1 < n ? chunks[c + 1].output_from : std::numeric_limits<int>::max();
+  };
+  const auto results_of = [&](std::size_t c) { return fs::path(chunk_dirs[c]) / "results.jsonl"; };
+
+  // Pass 1, chunk by chunk: the id mapping and the rest offsets. Held at any time: one chunk's
+  // overlap frames and the stitched frames the next chunk's overlap covers, not the results.
   std::vector<ChunkStitch> stitches;
+  std::vector<RestOffsets> offsets(n);
   nlohmann::json detection;
+  bool vertical = true;
   int next_id = 0;
-  // Per chunk, the rest offsets (stitched id, key) and the id mapping, for the table too.
-  std::vector<std::map<std::pair<int, std::string>, double>> offsets(chunk_dirs.size());
-  for (std::size_t c = 0; c < chunk_dirs.size(); ++c) {
-    const ChunkResults r = read_chunk(fs::path(chunk_dirs[c]) / "results.jsonl");
+  FrameLines tail;              // stitched frames within the next chunk's overlap
+  std::map<int, double> last;   // stitched id → its follicle along the face when last tracked
+  std::map<int, int> node_max;  // stitched id → its most nodes on a stitched frame
+  for (std::size_t c = 0; c < n; ++c) {
+    ChunkLines lines(results_of(c));
+    if (c == 0) {
+      detection = lines.detection();
+      for (const auto& w : detection.at("detection").at("whiskers"))
+        next_id = std::max(next_id, w.at("id").get<int>() + 1);
+      const nlohmann::json& face = detection.at("detection").at("face");
+      vertical = !face.is_string() || face.get_ref<const std::string&>() == "left" ||
+                 face.get_ref<const std::string&>() == "right";
+    }
+    const int end = end_of(c);
+    const int next_first = c + 1 < n ? chunks[c + 1].first : end;
+    FrameLines overlap, next_tail;
+    std::map<int, double> chunk_last;  // by the chunk's ids
+    std::map<int, int> chunk_nodes;
+    int chunk_ids = 0;
+    nlohmann::json line;
+    int frame = 0;
+    while (lines.next(line, frame)) {
+      for (const auto& w : line.at("whiskers"))
+        chunk_ids = std::max(chunk_ids, w.at("id").get<int>() + 1);
+      if (frame < chunks[c].output_from) {
+        overlap[frame] = std::move(line);
+        continue;
+      }
+      if (frame >= end) continue;
+      for (const auto& w : line.at("whiskers")) {
+        const int q = w.at("id").get<int>();
+        int& k = chunk_nodes[q];
+        k = std::max(k, static_cast<int>(w.at("nodes").size()));
+        if (tracked(w)) chunk_last[q] = along_face(w, vertical);
+      }
+      if (frame >= next_first) next_tail[frame] = std::move(line);
+    }
     ChunkStitch ids;
     if (c == 0) {
-      detection = r.detection;
-      for (const auto& w : detection.at("detection").at("whiskers")) {
-        next_id = std::max(next_id, w.at("id").get<int>() + 1);
-      }
-      for (const auto& [frame, line] : r.frames) {
-        for (const auto& w : line.at("whiskers"))
-          next_id = std::max(next_id, w.at("id").get<int>() + 1);
-      }
+      next_id = std::max(next_id, chunk_ids);
       ids.stitched_id.resize(static_cast<std::size_t>(next_id));
       for (int i = 0; i < next_id; ++i) ids.stitched_id[i] = i;
       ids.distance_px.assign(static_cast<std::size_t>(next_id), 0.0);
     } else {
-      const nlohmann::json& face_field = detection.at("detection").at("face");
-      const bool vertical = !face_field.is_string() ||
-                            face_field.get_ref<const std::string&>() == "left" ||
-                            face_field.get_ref<const std::string&>() == "right";
-      ids = match_ids(stitched, r, chunks[c], vertical, next_id);
-      offsets[c] = rest_offsets(stitched, r, chunks[c], ids);
+      ids = match_ids(tail, overlap, chunk_ids, last, chunks[c], vertical, next_id);
+      offsets[c] = rest_offsets(tail, overlap, chunks[c], ids);
     }
-    for (const auto& [frame, line] : r.frames) {
-      if (frame < chunks[c].output_from) continue;
-      nlohmann::json l = line;
-      for (auto& w : l.at("whiskers")) {
-        const int id = ids.stitched_id.at(w.at("id").get<int>());
-        w["id"] = id;
-        for (auto& [key, value] : w.items()) {
-          const auto o = offsets[c].find({id, key});
-          if (o != offsets[c].end() && value.is_number()) value = value.get<double>() + o->second;
-        }
-      }
-      stitched[frame] = std::move(l);
+    for (const auto& [q, along] : chunk_last) last[ids.stitched_id.at(q)] = along;
+    for (const auto& [q, k] : chunk_nodes) {
+      int& m = node_max[ids.stitched_id.at(q)];
+      m = std::max(m, k);
     }
+    for (auto& [f, l] : next_tail) stitch_line(l, ids, offsets[c]);
+    tail = std::move(next_tail);
     stitches.push_back(std::move(ids));
   }
+  tail.clear();
 
   nlohmann::json record = nlohmann::json::array();
   for (std::size_t c = 0; c < chunks.size(); ++c) {
@@ -356,29 +406,100 @@ std::vector<ChunkStitch> stitch_whisker_chunks(const std::vector<std::string>& c
                       {"distance_px", distances}});
   }
   detection["detection"]["chunks"] = record;
-  {
-    std::ofstream o(out / "results.jsonl.tmp", std::ios::trunc);
-    o << detection.dump() << "\n";
-    for (const auto& [frame, line] : stitched) o << line.dump() << "\n";
-    if (!o) throw InputError((out / "results.jsonl").string() + ": cannot write");
-  }
-  fs::rename(out / "results.jsonl.tmp", out / "results.jsonl");
-  if (!table) return stitches;
 
-  // The table: each chunk's rows from its output_from on, ids and rest-relative columns mapped.
+  // Pass 2: every file written a frame at a time, each chunk's frames from its output_from to the
+  // next chunk's, ids and rest-relative values stitched.
+  std::ofstream json(out / "results.jsonl.tmp", std::ios::trunc);
+  json << detection.dump() << "\n";
   std::vector<std::string> header;
+  std::ofstream csv;
+  if (table) {
+    const fs::path first = fs::path(chunk_dirs[0]) / "whiskers.csv";
+    std::ifstream in(first);
+    std::string line;
+    if (!in || !std::getline(in, line))
+      throw InputError(first.string() + ": cannot open a chunk's table");
+    header = split_csv_fields(line);
+    csv.open(out / "whiskers.csv.tmp", std::ios::trunc);
+    for (std::size_t k = 0; k < header.size(); ++k) csv << (k ? "," : "") << header[k];
+    csv << "\n";
+  }
+  // The HDF5 file: a whisker's centreline rows have its largest node count over the chunks (a
+  // chunk's detection may give it fewer nodes), NaN-padded.
+  std::unique_ptr<WhiskerHdf5Writer> writer;
+  std::vector<int> node_counts(static_cast<std::size_t>(next_id), 1);
+  for (const auto& [id, k] : node_max) node_counts[id] = std::max(1, k);
+  const std::size_t values_count = header.size() > 3 ? header.size() - 3 : 0;
+  if (table && hdf5) {
+    const std::string first = (fs::path(chunk_dirs[0]) / "whiskers.h5").string();
+    const hid_t f = H5Fopen(first.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (f < 0) throw InputError(first + ": cannot open a chunk's HDF5 file");
+    const std::string source = read_attribute(f, "source"), units = read_attribute(f, "units"),
+                      readout = read_attribute(f, "readout");
+    H5Fclose(f);
+    const std::vector<std::string> value_columns(header.begin() + 3, header.end());
+    writer = std::make_unique<WhiskerHdf5Writer>((out / "whiskers.h5").string(), value_columns,
+                                                 node_counts);
+    writer->attribute("source", source);
+    writer->attribute("units", units);
+    writer->attribute("readout", readout);
+    writer->attribute("chunks", record.dump());
+  }
+  std::vector<std::vector<double>> centrelines(static_cast<std::size_t>(next_id));
+  std::vector<double> values(values_count);
+  // One frame's table rows, sorted by id, into the table and the HDF5 file.
   std::vector<std::vector<std::string>> rows;
-  for (std::size_t c = 0; c < chunk_dirs.size(); ++c) {
+  const auto flush_rows = [&] {
+    std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
+      return std::stoi(a[1]) < std::stoi(b[1]);
+    });
+    for (const auto& f : rows) {
+      for (std::size_t k = 0; k < f.size(); ++k) csv << (k ? "," : "") << f[k];
+      csv << "\n";
+      if (!writer) continue;
+      for (std::size_t k = 0; k < values.size(); ++k)
+        values[k] = k + 3 < f.size() && !f[k + 3].empty() ? std::stod(f[k + 3]) : kNan;
+      writer->add_row(std::stoi(f[0]), std::stoi(f[1]), f[2], values);
+    }
+    rows.clear();
+  };
+  for (std::size_t c = 0; c < n; ++c) {
+    const int end = end_of(c);
+    ChunkLines lines(results_of(c));
+    nlohmann::json line;
+    int frame = 0;
+    while (lines.next(line, frame)) {
+      if (frame < chunks[c].output_from || frame >= end) continue;
+      stitch_line(line, stitches[c], offsets[c]);
+      json << line.dump() << "\n";
+      if (!writer) continue;
+      for (int id = 0; id < next_id; ++id) centrelines[id].assign(3 * node_counts[id], kNan);
+      for (const auto& w : line.at("whiskers")) {
+        if (w.at("status").get<std::string>() == "lost") continue;
+        std::vector<double>& cl = centrelines[w.at("id").get<int>()];
+        const auto& nodes = w.at("nodes");
+        for (std::size_t i = 0; i < nodes.size() && 3 * i + 2 < cl.size(); ++i) {
+          for (int k = 0; k < 3; ++k) cl[3 * i + k] = nodes[i][k].get<double>();
+        }
+      }
+      writer->add_frame(frame, centrelines);
+    }
+    if (!table) continue;
     const fs::path file = fs::path(chunk_dirs[c]) / "whiskers.csv";
     std::ifstream in(file);
-    if (!in) throw InputError(file.string() + ": cannot open a chunk's table");
-    std::string line;
-    std::getline(in, line);
-    if (c == 0) header = split_csv_fields(line);
-    while (std::getline(in, line)) {
-      std::vector<std::string> f = split_csv_fields(line);
+    std::string text;
+    if (!in || !std::getline(in, text))
+      throw InputError(file.string() + ": cannot open a chunk's table");
+    int row_frame = std::numeric_limits<int>::min();
+    while (std::getline(in, text)) {
+      std::vector<std::string> f = split_csv_fields(text);
       if (f.size() < 3) continue;
-      if (std::stoi(f[0]) < chunks[c].output_from) continue;
+      const int fr = std::stoi(f[0]);
+      if (fr < chunks[c].output_from || fr >= end) continue;
+      if (fr != row_frame) {
+        flush_rows();
+        row_frame = fr;
+      }
       const int id = stitches[c].stitched_id.at(std::stoi(f[1]));
       f[1] = std::to_string(id);
       for (std::size_t k = 3; k < f.size() && k < header.size(); ++k) {
@@ -392,72 +513,16 @@ std::vector<ChunkStitch> stitch_whisker_chunks(const std::vector<std::string>& c
       }
       rows.push_back(std::move(f));
     }
+    flush_rows();
   }
-  std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
-    const int fa = std::stoi(a[0]), fb = std::stoi(b[0]);
-    return fa != fb ? fa < fb : std::stoi(a[1]) < std::stoi(b[1]);
-  });
-  {
-    std::ofstream o(out / "whiskers.csv.tmp", std::ios::trunc);
-    for (std::size_t k = 0; k < header.size(); ++k) o << (k ? "," : "") << header[k];
-    o << "\n";
-    for (const auto& f : rows) {
-      for (std::size_t k = 0; k < f.size(); ++k) o << (k ? "," : "") << f[k];
-      o << "\n";
-    }
-    if (!o) throw InputError((out / "whiskers.csv").string() + ": cannot write");
-  }
+  json.close();
+  if (!json) throw InputError((out / "results.jsonl").string() + ": cannot write");
+  fs::rename(out / "results.jsonl.tmp", out / "results.jsonl");
+  if (!table) return stitches;
+  csv.close();
+  if (!csv) throw InputError((out / "whiskers.csv").string() + ": cannot write");
   fs::rename(out / "whiskers.csv.tmp", out / "whiskers.csv");
-  if (!hdf5) return stitches;
-
-  // The HDF5 file from the stitched table and centrelines; a whisker's centreline rows have its
-  // largest node count over the chunks (a chunk's detection may give it fewer nodes), NaN-padded.
-  std::map<int, int> nodes;
-  for (const auto& [frame, line] : stitched) {
-    for (const auto& w : line.at("whiskers")) {
-      int& n = nodes[w.at("id").get<int>()];
-      n = std::max(n, static_cast<int>(w.at("nodes").size()));
-    }
-  }
-  std::vector<int> node_counts(static_cast<std::size_t>(next_id), 1);
-  for (const auto& [id, n] : nodes) node_counts[id] = std::max(1, n);
-  std::string source, units, readout;
-  {
-    const std::string first = (fs::path(chunk_dirs[0]) / "whiskers.h5").string();
-    const hid_t f = H5Fopen(first.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-    if (f < 0) throw InputError(first + ": cannot open a chunk's HDF5 file");
-    source = read_attribute(f, "source");
-    units = read_attribute(f, "units");
-    readout = read_attribute(f, "readout");
-    H5Fclose(f);
-  }
-  const std::vector<std::string> value_columns(header.begin() + 3, header.end());
-  WhiskerHdf5Writer writer((out / "whiskers.h5").string(), value_columns, node_counts);
-  writer.attribute("source", source);
-  writer.attribute("units", units);
-  writer.attribute("readout", readout);
-  writer.attribute("chunks", record.dump());
-  std::vector<double> values(value_columns.size());
-  for (const auto& f : rows) {
-    for (std::size_t k = 0; k < values.size(); ++k) {
-      values[k] = k + 3 < f.size() && !f[k + 3].empty() ? std::stod(f[k + 3]) : kNan;
-    }
-    writer.add_row(std::stoi(f[0]), std::stoi(f[1]), f[2], values);
-  }
-  std::vector<std::vector<double>> centrelines(static_cast<std::size_t>(next_id));
-  for (const auto& [frame, line] : stitched) {
-    for (int id = 0; id < next_id; ++id) centrelines[id].assign(3 * node_counts[id], kNan);
-    for (const auto& w : line.at("whiskers")) {
-      if (w.at("status").get<std::string>() == "lost") continue;
-      std::vector<double>& c = centrelines[w.at("id").get<int>()];
-      const auto& n = w.at("nodes");
-      for (std::size_t i = 0; i < n.size() && 3 * i + 2 < c.size(); ++i) {
-        for (int k = 0; k < 3; ++k) c[3 * i + k] = n[i][k].get<double>();
-      }
-    }
-    writer.add_frame(frame, centrelines);
-  }
-  writer.finish();
+  if (writer) writer->finish();
   return stitches;
 }
 
