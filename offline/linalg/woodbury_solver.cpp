@@ -191,6 +191,7 @@ WoodburyStatus WoodburySolver::apply_base_inverse(const Eigen::Ref<const Eigen::
 WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt, double relative,
                                                               double floor) {
   factorised_ = false;
+  held_count_ = 0;
   if (Zt.rows() != size() || !Zt.allFinite()) return WoodburyStatus::kInvalidInput;
   if (!(relative >= 0.0 && std::isfinite(relative)) || !(floor >= 0.0 && std::isfinite(floor))) {
     return WoodburyStatus::kInvalidInput;
@@ -246,6 +247,159 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt
   return WoodburyStatus::kOk;
 }
 
+void WoodburySolver::held_base_inverse(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                       Eigen::Index first, Eigen::Index k, ThreadWork& work,
+                                       Eigen::Ref<Eigen::MatrixXd> out) const {
+  const Eigen::Index m = num_tets_;
+  work.rhs.resize(num_free_, 6 * k);
+  for (Eigen::Index j = 0; j < k; ++j) {
+    const double* column = V.col(first + j).data();
+    for (Eigen::Index t = 0; t < m; ++t) {
+      const Eigen::Index row = free_index_[static_cast<std::size_t>(t)];
+      if (row < 0) continue;
+      for (int c = 0; c < 6; ++c) work.rhs(row, 6 * j + c) = column[6 * t + c];
+    }
+  }
+  work.solution.resize(num_free_, 6 * k);
+  held_factor_.solve(work.rhs, work.solution, work.cholmod);
+  const std::array<double, 6>& w = plastic_strain_laplacian_weights();
+  for (Eigen::Index j = 0; j < k; ++j) {
+    double* column = out.col(first + j).data();
+    for (Eigen::Index t = 0; t < m; ++t) {
+      const Eigen::Index row = free_index_[static_cast<std::size_t>(t)];
+      for (int c = 0; c < 6; ++c) {
+        column[6 * t + c] = row < 0 ? 0.0 : work.solution(row, 6 * j + c) / (w[c] * w[c]);
+      }
+    }
+  }
+}
+
+void WoodburySolver::held_base_inverse_of_columns(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                                  Eigen::Ref<Eigen::MatrixXd> out) {
+  detail::for_each_column_block(
+      V.cols(), options_.block_columns, threads_,
+      [&](int thread, Eigen::Index first, Eigen::Index k) {
+        held_base_inverse(V, first, k, held_work_[static_cast<std::size_t>(thread)], out);
+      });
+}
+
+WoodburyStatus WoodburySolver::set_constraint_rows_transposed_holding(
+    Eigen::MatrixXd Zt, const std::vector<Eigen::Index>& held, double relative, double floor,
+    double penalty) {
+  if (held.empty()) return set_constraint_rows_transposed(std::move(Zt), relative, floor);
+  factorised_ = false;
+  held_count_ = 0;
+  const Eigen::Index m = num_tets_;
+  if (Zt.rows() != size() || !Zt.allFinite()) return WoodburyStatus::kInvalidInput;
+  if (!(relative >= 0.0 && std::isfinite(relative)) || !(floor >= 0.0 && std::isfinite(floor)) ||
+      !(penalty >= 0.0 && std::isfinite(penalty))) {
+    return WoodburyStatus::kInvalidInput;
+  }
+  free_index_.assign(static_cast<std::size_t>(m), 0);
+  for (Eigen::Index t : held) {
+    if (t < 0 || t >= m) return WoodburyStatus::kInvalidInput;
+    free_index_[static_cast<std::size_t>(t)] = -1;
+  }
+  num_free_ = 0;
+  for (Eigen::Index& index : free_index_) {
+    if (index == 0) index = num_free_++;
+  }
+  if (num_free_ == 0) return WoodburyStatus::kInvalidInput;
+  const Eigen::Index held_count = m - num_free_;
+  const Eigen::Index r = Zt.cols();
+  Zt_ = std::move(Zt);
+  // δ as set_constraint_rows_transposed would compute it with the penalty rows appended.
+  const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
+  Z_psi_.resize(r, 6);
+  for (Eigen::Index j = 0; j < r; ++j) {
+    Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+    for (Eigen::Index t = 0; t < m; ++t) sum += Zt_.col(j).segment<6>(6 * t);
+    Z_psi_.row(j) = inv_sqrt_m * sum.transpose();
+  }
+  const double penalty_rows = 6.0 * static_cast<double>(held_count) * penalty * penalty;
+  const double delta = (relative * (Z_psi_.squaredNorm() + penalty_rows / static_cast<double>(m)) +
+                        floor * (Zt_.squaredNorm() + penalty_rows)) /
+                           6.0 +
+                       1e-12;
+  nullspace_scale_ = std::sqrt(1.0 + delta);
+  const double root_delta = std::sqrt(delta);
+
+  // B_F's scalar part [(L^sc)²]_FF (upper triangle), factorised.
+  Clock::time_point start = Clock::now();
+  const Eigen::SparseMatrix<double> square = scalar_laplacian_ * scalar_laplacian_;
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(static_cast<std::size_t>(square.nonZeros()));
+  for (Eigen::Index column = 0; column < square.outerSize(); ++column) {
+    const Eigen::Index fc = free_index_[static_cast<std::size_t>(column)];
+    if (fc < 0) continue;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(square, column); it; ++it) {
+      const Eigen::Index fr = free_index_[static_cast<std::size_t>(it.row())];
+      if (fr >= 0 && fr <= fc) entries.emplace_back(fr, fc, it.value());
+    }
+  }
+  Eigen::SparseMatrix<double> restricted(num_free_, num_free_);
+  restricted.setFromTriplets(entries.begin(), entries.end());
+  held_factor_ = SparseCholesky(SparseCholeskyOptions{options_.ordering, options_.cholesky_method});
+  if (held_factor_.compute(restricted) != SparseCholeskyStatus::kOk) {
+    return WoodburyStatus::kFactorisationFailed;
+  }
+  held_work_.resize(static_cast<std::size_t>(threads_));
+
+  // V = B_F⁻¹Zᵀ in Y_'s memory, and B_F⁻¹(√δ Ψ).
+  if (Y_.rows() != size() || Y_.cols() != r) {
+    Y_ = Eigen::MatrixXd();
+    Y_ = options_.huge_pages ? detail::large_matrix(size(), r) : Eigen::MatrixXd(size(), r);
+  }
+  held_base_inverse_of_columns(Zt_, Y_);
+  Eigen::MatrixXd Q = Eigen::MatrixXd::Zero(size(), 6);
+  for (int c = 0; c < 6; ++c) {
+    for (Eigen::Index t = 0; t < m; ++t) Q(6 * t + c, c) = root_delta * inv_sqrt_m;
+  }
+  psi_solved_.resize(size(), 6);
+  held_base_inverse(Q, 0, 6, held_work_.front(), psi_solved_);
+  base_solve_seconds_ = seconds_since(start);
+
+  // C = I + ẐV (SPD: I + Ẑ B_F⁻¹ Ẑᵀ restricted to F), symmetrised.
+  start = Clock::now();
+  Eigen::MatrixXd capacitance = Eigen::MatrixXd::Identity(r + 6, r + 6);
+  capacitance.topLeftCorner(r, r).noalias() += Zt_.transpose() * Y_;
+  const Eigen::MatrixXd Zt_psi = Zt_.transpose() * psi_solved_;  // r x 6
+  capacitance.topRightCorner(r, 6) += Zt_psi;
+  capacitance.bottomLeftCorner(6, r) += Zt_psi.transpose();
+  capacitance.bottomRightCorner<6, 6>() += Q.transpose() * psi_solved_;
+  capacitance = (0.5 * (capacitance + capacitance.transpose())).eval();
+  capacitance_.compute(capacitance);
+  capacitance_seconds_ = seconds_since(start);
+  const Eigen::VectorXd pivots = capacitance_.matrixLU().diagonal().cwiseAbs();
+  if (!pivots.allFinite() || pivots.minCoeff() <= 1e-14 * std::max(1.0, pivots.maxCoeff())) {
+    return WoodburyStatus::kSingularCapacitance;
+  }
+  held_count_ = held_count;
+  factorised_ = true;
+  return WoodburyStatus::kOk;
+}
+
+WoodburyStatus WoodburySolver::held_solve_once(const Eigen::Ref<const Eigen::VectorXd>& h,
+                                               Eigen::Ref<Eigen::VectorXd> y) {
+  // y = u − V C⁻¹ Ẑu,  u = B_F⁻¹h.
+  Eigen::MatrixXd u(size(), 1);
+  held_base_inverse(h, 0, 1, held_work_.front(), u);
+  const Eigen::Index r = Zt_.cols();
+  const Eigen::Index m = num_tets_;
+  const double root_delta = std::sqrt(nullspace_damping());
+  const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
+  Eigen::VectorXd Zhat_u(r + 6);
+  Zhat_u.head(r).noalias() = Zt_.transpose() * u.col(0);
+  Zhat_u.tail<6>().setZero();
+  for (Eigen::Index t = 0; t < m; ++t) Zhat_u.tail<6>() += u.col(0).segment<6>(6 * t);
+  Zhat_u.tail<6>() *= root_delta * inv_sqrt_m;
+  const Eigen::VectorXd c = capacitance_.solve(Zhat_u);
+  y = u.col(0);
+  y.noalias() -= Y_ * c.head(r);
+  y.noalias() -= psi_solved_ * c.tail<6>();
+  return y.allFinite() ? WoodburyStatus::kOk : WoodburyStatus::kSingularCapacitance;
+}
+
 Eigen::MatrixXd WoodburySolver::release_constraint_rows() {
   factorised_ = false;
   return std::move(Zt_);
@@ -257,14 +411,18 @@ WoodburyStatus WoodburySolver::solve(const Eigen::Ref<const Eigen::VectorXd>& h,
   if (h.size() != size() || y.size() != size() || !h.allFinite()) {
     return WoodburyStatus::kInvalidInput;
   }
-  WoodburyStatus status = solve_once(h, y);
+  const auto once = [&](const Eigen::Ref<const Eigen::VectorXd>& rhs,
+                        Eigen::Ref<Eigen::VectorXd> out) {
+    return held_count_ > 0 ? held_solve_once(rhs, out) : solve_once(rhs, out);
+  };
+  WoodburyStatus status = once(h, y);
   if (status != WoodburyStatus::kOk || options_.refinement_steps == 0) return status;
   // Iterative refinement: the residual of the solve, solved again with the same factorisations.
   Eigen::VectorXd residual(size()), Hy(size()), correction(size());
   for (int step = 0; step < options_.refinement_steps; ++step) {
     apply_hessian(y, Hy);
     residual = h - Hy;
-    status = solve_once(residual, correction);
+    status = once(residual, correction);
     if (status != WoodburyStatus::kOk) return status;
     y += correction;
   }
@@ -290,6 +448,12 @@ void WoodburySolver::apply_hessian(const Eigen::VectorXd& v, Eigen::VectorXd& ou
   Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
   for (Eigen::Index t = 0; t < m; ++t) sum += v.segment<6>(6 * t);
   for (Eigen::Index t = 0; t < m; ++t) out.segment<6>(6 * t) += (delta / double(m)) * sum;
+  // Held mode: H restricted to the free tets' rows (y is 0 on the held ones).
+  if (held_count_ > 0) {
+    for (Eigen::Index t = 0; t < m; ++t) {
+      if (free_index_[static_cast<std::size_t>(t)] < 0) out.segment<6>(6 * t).setZero();
+    }
+  }
 }
 
 WoodburyStatus WoodburySolver::solve_once(const Eigen::Ref<const Eigen::VectorXd>& h,

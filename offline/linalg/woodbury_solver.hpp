@@ -97,6 +97,29 @@ class WoodburySolver {
   /// enters as Ẑ's last six rows √(1 + δ)·Ψᵀ, so B is unchanged.
   WoodburyStatus set_constraint_rows_transposed(Eigen::MatrixXd Zt, double relative = 0.0,
                                                 double floor = 0.0);
+  /// The same solve with the tets `held` held: their six entries of y are 0, and y solves the
+  /// rows of H y = h of the other (free) tets F, i.e. the limit of six penalty rows ∞·eᵢᵀ per
+  /// held tet (GaussNewtonOptions::hold_clamped_tets). Without any extra row: B becomes
+  ///   B_F = [(L^sc)²]_FF ⊗ diag(w²)
+  /// (SPD once a tet is held on a connected mesh), factorised by one sparse Cholesky of the
+  /// m_F x m_F matrix [(L^sc)²]_FF per call, V = B_F⁻¹Zᵀ is kept in the memory L⁺Zᵀ takes, and the
+  /// capacitance is I + ẐV with Ẑ = [Z; √δ Ψᵀ] restricted to F ((r+6) x (r+6), SPD). Memory is that
+  /// of the unheld solve whatever the number of held tets (penalty rows cost 2·8·6m bytes per row
+  /// in Zᵀ and L⁺Zᵀ and grow the capacitance). δ is the one the penalty rows penalty·eᵢᵀ would
+  /// give (they add 6·#held·penalty²/m to ‖ZΨ‖²_F and 6·#held·penalty² to ‖Z‖²_F), so that this
+  /// solve is the limit of set_constraint_rows_transposed() with those rows as penalty → ∞ at a
+  /// fixed δ. Every tet held, or an index out of range: kInvalidInput. An empty `held` is
+  /// set_constraint_rows_transposed().
+  WoodburyStatus set_constraint_rows_transposed_holding(Eigen::MatrixXd Zt,
+                                                        const std::vector<Eigen::Index>& held,
+                                                        double relative = 0.0, double floor = 0.0,
+                                                        double penalty = 0.0);
+  /// Tets held by the last set_constraint_rows_transposed_holding() (0 after the plain one).
+  Eigen::Index held_tets() const { return held_count_; }
+  /// Columns of the Zᵀ kept (r) and rows of the dense capacitance (r + 6) of the last call: what
+  /// the memory grows with (2·8·6m·r bytes for Zᵀ and L⁺Zᵀ, 8·(r + 6)² for the capacitance).
+  Eigen::Index constraint_rows() const { return Zt_.cols(); }
+  Eigen::Index capacitance_size() const { return capacitance_.rows(); }
   /// Hands back the Zᵀ of the last set_constraint_rows_transposed() (solve() is refused until the
   /// next one), so that the next Z can be written into the same memory: fresh pages of a
   /// gigabyte-sized matrix cost seconds to fault in and zero on this machine.
@@ -126,6 +149,13 @@ class WoodburySolver {
   void component_pseudo_inverse(const Eigen::Ref<const Eigen::MatrixXd>& V, Eigen::Index first,
                                 Eigen::Index k, int times, ThreadWork& work,
                                 Eigen::Ref<Eigen::MatrixXd> out) const;
+  // out = B_F⁻¹ V for columns [first, first + k) of V (held mode), zero on the held tets.
+  void held_base_inverse(const Eigen::Ref<const Eigen::MatrixXd>& V, Eigen::Index first,
+                         Eigen::Index k, ThreadWork& work, Eigen::Ref<Eigen::MatrixXd> out) const;
+  void held_base_inverse_of_columns(const Eigen::Ref<const Eigen::MatrixXd>& V,
+                                    Eigen::Ref<Eigen::MatrixXd> out);
+  WoodburyStatus held_solve_once(const Eigen::Ref<const Eigen::VectorXd>& h,
+                                 Eigen::Ref<Eigen::VectorXd> y);
   // One Woodbury solve (eq. 14) without refinement.
   WoodburyStatus solve_once(const Eigen::Ref<const Eigen::VectorXd>& h,
                             Eigen::Ref<Eigen::VectorXd> y);
@@ -147,6 +177,14 @@ class WoodburySolver {
   double nullspace_scale_ = 1.0;  // √(1 + δ)
   Eigen::PartialPivLU<Eigen::MatrixXd> capacitance_;
   bool factorised_ = false;
+  // Held mode (set_constraint_rows_transposed_holding): free_index_[t] = t's row in B_F's
+  // scalar factor, −1 when held; Y_ then holds V = B_F⁻¹Zᵀ and psi_solved_ = B_F⁻¹(√δ Ψ).
+  Eigen::Index held_count_ = 0;
+  std::vector<Eigen::Index> free_index_;
+  Eigen::Index num_free_ = 0;
+  SparseCholesky held_factor_;
+  Eigen::MatrixXd psi_solved_;  // 6m x 6
+  std::vector<ThreadWork> held_work_;
   int threads_ = 1;
   std::vector<ThreadWork> work_;  // one per thread
   double base_solve_seconds_ = 0.0;

@@ -254,10 +254,18 @@ class Registration {
     storage = Eigen::MatrixXd();  // not reused (the row count changed): free it now
     record.jacobian_seconds = seconds_since(start);
     if (!jacobian) return false;
-    if (!held_tets_.empty() && jacobian->Zt.cols() > 0) {
-      // Held tets: six penalty rows each (residual 0), stiff against the constraints' own rows.
+    // Held tets by penalty rows while their Zᵀ and L⁺Zᵀ columns fit held_penalty_max_bytes,
+    // by elimination (WoodburySolver::set_constraint_rows_transposed_holding) above.
+    const double penalty_bytes = 2.0 * 8.0 * static_cast<double>(jacobian->Zt.rows()) * 6.0 *
+                                 static_cast<double>(held_tets_.size());
+    const bool eliminate = !held_tets_.empty() && jacobian->Zt.cols() > 0 &&
+                           penalty_bytes > options_.held_penalty_max_bytes;
+    record.held_tets = std::max(record.held_tets, static_cast<int>(held_tets_.size()));
+    if (eliminate) record.held_by_elimination = true;
+    // Held tets: six penalty rows each (residual 0), stiff against the constraints' own rows.
+    const double big = held_tets_.empty() ? 0.0 : 1e3 * jacobian->Zt.rowwise().norm().maxCoeff();
+    if (!held_tets_.empty() && jacobian->Zt.cols() > 0 && !eliminate) {
       const Eigen::Index r0 = jacobian->Zt.cols();
-      const double big = 1e3 * jacobian->Zt.rowwise().norm().maxCoeff();
       const Eigen::Index extra = 6 * static_cast<Eigen::Index>(held_tets_.size());
       Eigen::MatrixXd Zt(jacobian->Zt.rows(), r0 + extra);
       Zt.leftCols(r0) = jacobian->Zt;
@@ -280,8 +288,12 @@ class Registration {
     gradient.noalias() += jacobian->Zt * jacobian->residual;
     // (1 + μ)L² + ZᵀZ = (1 + μ)(L² + Z̃ᵀZ̃) with Z̃ = Z/√(1 + μ): the same Woodbury solve.
     if (damping > 0.0) jacobian->Zt *= 1.0 / std::sqrt(1.0 + damping);
-    WoodburyStatus solved = woodbury_.set_constraint_rows_transposed(
-        std::move(jacobian->Zt), options_.nullspace_damping, damping_floor);
+    WoodburyStatus solved =
+        eliminate ? woodbury_.set_constraint_rows_transposed_holding(
+                        std::move(jacobian->Zt), held_tets_, options_.nullspace_damping,
+                        damping_floor, big / std::sqrt(1.0 + damping))
+                  : woodbury_.set_constraint_rows_transposed(
+                        std::move(jacobian->Zt), options_.nullspace_damping, damping_floor);
     step.resize(s.size());
     if (solved == WoodburyStatus::kOk) solved = woodbury_.solve(-gradient, step);
     double constant_damping = 0.0;  // ν of the constant-strain limit, when it binds
@@ -741,7 +753,8 @@ struct LineSearch {
   // inverted equilibrium (this one, or one scored on a direction damped at μ ≥
   // rescue_min_damping).
   bool take_inverted() {
-    if (best_eta > 0.0 || !(inverted_value < best_value)) return best_eta > 0.0 && best_inverted;
+    if (!take_deferred_inverted_trial(best_eta, best_value, inverted_value))
+      return best_eta > 0.0 && best_inverted;
     best_value = inverted_value;
     best_eta = inverted_eta;
     best_x = std::move(inverted_x);

@@ -72,6 +72,8 @@ std::optional<std::string> GaussNewtonOptions::validate() const {
     return invalid("damped_step_trials", damped_step_trials, "must be in [0, 100]");
   if (!(constant_strain_step_limit >= 0.0 && std::isfinite(constant_strain_step_limit)))
     return invalid("constant_strain_step_limit", constant_strain_step_limit, "must be >= 0");
+  if (!(held_penalty_max_bytes >= 0.0 && std::isfinite(held_penalty_max_bytes)))
+    return invalid("held_penalty_max_bytes", held_penalty_max_bytes, "must be >= 0");
   if (!(rescue_min_damping >= 0.0 && std::isfinite(rescue_min_damping)))
     return invalid("rescue_min_damping", rescue_min_damping, "must be >= 0");
   if (!(damping_start > 0.0 && std::isfinite(damping_start)))

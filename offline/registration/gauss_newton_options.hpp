@@ -126,6 +126,12 @@ struct GaussNewtonOptions {
   /// clamped step of the coupled system (L² links neighbouring tets) need not descend even for
   /// large damping. false (the default): clamp and search, as the paper.
   bool hold_clamped_tets = false;
+  /// Held tets' six penalty rows cost 2·8·6m bytes each (their columns of Zᵀ and L⁺Zᵀ, m tets)
+  /// and grow the dense capacitance; when they would take more than this, the tets are held
+  /// exactly by elimination instead (WoodburySolver::set_constraint_rows_transposed_holding:
+  /// the unheld solve's memory whatever their number). The bunny bent 90° (15,983 tets) was
+  /// killed at 22 GB holding hundreds of tets by rows (issue 51, docs/registration.md); ≥ 0.
+  double held_penalty_max_bytes = 2e9;
   /// A trust region on the damped steps' constant-strain part (damped_step_trials): a step at
   /// damping μ whose mean over the tets (its part along the six constant strains Ψ, which L² does
   /// not damp) is longer than this fraction of the mean of s, divided by √(1 + μ), gets the

@@ -24,6 +24,10 @@ struct GaussNewtonIteration {
   int equilibrium_solves = 0;
   int clamped_tets = 0;           ///< tets whose Fp eigenvalues were clamped
   bool projected_search = false;  ///< the projected-path search ran (projected_search_fallback)
+  /// Most tets held by a direction of the iteration (GaussNewtonOptions::hold_clamped_tets), and
+  /// whether one was held by elimination (GaussNewtonOptions::held_penalty_max_bytes).
+  int held_tets = 0;
+  bool held_by_elimination = false;
   /// The step taken ends at an equilibrium with an inverted tet
   /// (GaussNewtonOptions::inverted_equilibrium_fallback).
   bool inverted_equilibrium = false;

@@ -68,4 +68,8 @@ BrentResult brent_minimise(const std::function<double(double)>& f, double a, dou
   return result;
 }
 
+bool take_deferred_inverted_trial(double best_eta, double best_value, double inverted_value) {
+  return !(best_eta > 0.0) && inverted_value < best_value;
+}
+
 }  // namespace sinew::offline

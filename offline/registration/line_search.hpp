@@ -18,4 +18,10 @@ struct BrentResult {
 BrentResult brent_minimise(const std::function<double(double)>& f, double a, double b,
                            double tolerance, int max_evaluations);
 
+/// GaussNewtonOptions::inverted_equilibrium_fallback's deferral, on a direction damped below
+/// rescue_min_damping: the best trial whose only equilibrium inverts a tet (Φ = inverted_value
+/// there, +∞ when none) is taken only when no trial of the iteration lowered Φ (best_eta = 0: the
+/// search's best is still the start, Φ = best_value) and it lowers Φ below that.
+bool take_deferred_inverted_trial(double best_eta, double best_value, double inverted_value);
+
 }  // namespace sinew::offline

@@ -89,6 +89,8 @@ nlohmann::json iteration_json(const GaussNewtonIteration& it) {
           {"clamped_tets", it.clamped_tets},
           {"projected_search", it.projected_search},
           {"inverted_equilibrium", it.inverted_equilibrium},
+          {"held_tets", it.held_tets},
+          {"held_by_elimination", it.held_by_elimination},
           {"damping", hex_double(it.damping)},
           {"jacobian_seconds", hex_double(it.jacobian_seconds)},
           {"woodbury_seconds", hex_double(it.woodbury_seconds)},
@@ -114,6 +116,9 @@ GaussNewtonIteration read_iteration(const JsonCursor& j) {
   // Absent in checkpoints written before the inverted-equilibrium fallback existed.
   if (j.has("inverted_equilibrium"))
     it.inverted_equilibrium = j.at("inverted_equilibrium").boolean();
+  // Absent in checkpoints written before the held-tet counts were reported.
+  if (j.has("held_tets")) it.held_tets = static_cast<int>(j.at("held_tets").integer());
+  if (j.has("held_by_elimination")) it.held_by_elimination = j.at("held_by_elimination").boolean();
   // Absent in checkpoints written before the damped steps existed (undamped).
   if (j.has("damping")) it.damping = real("damping");
   it.jacobian_seconds = real("jacobian_seconds");

@@ -76,6 +76,8 @@ nlohmann::json iterations_json(const std::vector<offline::GaussNewtonIteration>&
                           {"damping", it.damping},
                           {"projected_search", it.projected_search},
                           {"inverted_equilibrium", it.inverted_equilibrium},
+                          {"held_tets", it.held_tets},
+                          {"held_by_elimination", it.held_by_elimination},
                           {"jacobian_seconds", it.jacobian_seconds},
                           {"woodbury_seconds", it.woodbury_seconds},
                           {"line_search_seconds", it.line_search_seconds},

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "offline/plastic/plastic_strain_laplacian.hpp"
 #include "tests/support/tet_mesh_fixtures.hpp"
@@ -161,6 +162,95 @@ TEST(WoodburySolver, ThreadsAndBlockSizesGiveTheSameStep) {
     EXPECT_LT((y - reference).norm() / reference.norm(), 1e-12)
         << threads << " threads, blocks of " << block;
   }
+}
+
+// Held tets (set_constraint_rows_transposed_holding): y is 0 on them and solves the free tets'
+// rows of H y = h, against a dense solve of H restricted to the free entries; the limit of the
+// penalty rows big·eᵢᵀ per held entry (what gauss_newton adds below held_penalty_max_bytes); and
+// the kept rows and capacitance do not grow with the held tets, where the penalty rows' do.
+TEST(WoodburySolver, HeldTetsAreEliminatedWithoutExtraRows) {
+  const System system = make_system(4, 3, 2);
+  const Eigen::Index n = 6 * system.m;
+  const Eigen::MatrixXd Z = 30.0 * random_matrix(15, n, 7);
+  const Eigen::VectorXd h = random_matrix(n, 1, 8);
+  std::vector<Eigen::Index> held;
+  for (Eigen::Index t = 0; t < system.m; t += 3) held.push_back(t);
+  ASSERT_GT(held.size(), 20u);
+  auto solver = WoodburySolver::create(system.laplacian.adjacency, system.m);
+  ASSERT_TRUE(solver.has_value());
+  ASSERT_EQ(solver->set_constraint_rows_transposed_holding(Z.transpose(), held, 0.1),
+            WoodburyStatus::kOk);
+  EXPECT_EQ(solver->held_tets(), static_cast<Eigen::Index>(held.size()));
+  EXPECT_EQ(solver->constraint_rows(), 15);
+  EXPECT_EQ(solver->capacitance_size(), 15 + 6);
+  Eigen::VectorXd y(n);
+  ASSERT_EQ(solver->solve(h, y), WoodburyStatus::kOk);
+
+  // Dense reference on the free entries.
+  std::vector<char> is_held(static_cast<std::size_t>(system.m), 0);
+  for (Eigen::Index t : held) is_held[static_cast<std::size_t>(t)] = 1;
+  std::vector<Eigen::Index> free;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!is_held[static_cast<std::size_t>(i / 6)]) free.push_back(i);
+  }
+  const double delta = solver->nullspace_damping();
+  EXPECT_NEAR(delta, 0.1 * (Z * system.Psi).squaredNorm() / 6.0 + 1e-12, 1e-9 * delta);
+  const Eigen::MatrixXd H =
+      system.L * system.L + Z.transpose() * Z + delta * system.Psi * system.Psi.transpose();
+  const Eigen::Index f = static_cast<Eigen::Index>(free.size());
+  Eigen::MatrixXd H_free(f, f);
+  Eigen::VectorXd h_free(f);
+  for (Eigen::Index i = 0; i < f; ++i) {
+    h_free[i] = h[free[static_cast<std::size_t>(i)]];
+    for (Eigen::Index j = 0; j < f; ++j)
+      H_free(i, j) = H(free[static_cast<std::size_t>(i)], free[static_cast<std::size_t>(j)]);
+  }
+  const Eigen::VectorXd dense = H_free.ldlt().solve(h_free);
+  Eigen::VectorXd y_free(f);
+  for (Eigen::Index i = 0; i < f; ++i) y_free[i] = y[free[static_cast<std::size_t>(i)]];
+  EXPECT_LT((y_free - dense).norm() / dense.norm(), 1e-8);
+  for (Eigen::Index t : held) EXPECT_EQ(y.segment<6>(6 * t).norm(), 0.0) << "tet " << t;
+
+  // The penalty rows (gauss_newton's: 1e3 times the largest row norm of Zᵀ) approach it, with
+  // six more rows per held tet in Zᵀ and in the capacitance.
+  const double big = 1e3 * Z.transpose().rowwise().norm().maxCoeff();
+  const Eigen::Index extra = 6 * static_cast<Eigen::Index>(held.size());
+  Eigen::MatrixXd Zt_penalty = Eigen::MatrixXd::Zero(n, 15 + extra);
+  Zt_penalty.leftCols(15) = Z.transpose();
+  for (std::size_t k = 0; k < held.size(); ++k) {
+    for (int i = 0; i < 6; ++i)
+      Zt_penalty(6 * held[k] + i, 15 + 6 * static_cast<Eigen::Index>(k) + i) = big;
+  }
+  auto penalty = WoodburySolver::create(system.laplacian.adjacency, system.m);
+  ASSERT_TRUE(penalty.has_value());
+  // Told the penalty, the held solve takes the δ those rows give (they enter ‖ZΨ‖²).
+  ASSERT_EQ(solver->set_constraint_rows_transposed_holding(Z.transpose(), held, 0.1, 0.0, big),
+            WoodburyStatus::kOk);
+  ASSERT_EQ(solver->solve(h, y), WoodburyStatus::kOk);
+  ASSERT_EQ(penalty->set_constraint_rows_transposed(Zt_penalty, 0.1), WoodburyStatus::kOk);
+  EXPECT_NEAR(solver->nullspace_damping(), penalty->nullspace_damping(),
+              1e-9 * penalty->nullspace_damping());
+  EXPECT_GT(penalty->nullspace_damping(), 1e3 * delta);
+  EXPECT_EQ(penalty->constraint_rows(), 15 + extra);
+  EXPECT_EQ(penalty->capacitance_size(), 15 + extra + 6);
+  Eigen::VectorXd y_penalty(n);
+  ASSERT_EQ(penalty->solve(h, y_penalty), WoodburyStatus::kOk);
+  EXPECT_LT((y_penalty - y).norm() / y.norm(), 1e-4);
+
+  // Back to the plain solve: nothing held.
+  ASSERT_EQ(solver->set_constraint_rows_transposed(Z.transpose()), WoodburyStatus::kOk);
+  EXPECT_EQ(solver->held_tets(), 0);
+  ASSERT_EQ(solver->solve(h, y), WoodburyStatus::kOk);
+  const Eigen::MatrixXd H0 = system.L * system.L + Z.transpose() * Z;
+  EXPECT_LT((H0 * y - h).norm() / h.norm(), 1e-8);
+
+  // Every tet held, or an index out of range: invalid.
+  std::vector<Eigen::Index> all(static_cast<std::size_t>(system.m));
+  for (Eigen::Index t = 0; t < system.m; ++t) all[static_cast<std::size_t>(t)] = t;
+  EXPECT_EQ(solver->set_constraint_rows_transposed_holding(Z.transpose(), all),
+            WoodburyStatus::kInvalidInput);
+  EXPECT_EQ(solver->set_constraint_rows_transposed_holding(Z.transpose(), {system.m}),
+            WoodburyStatus::kInvalidInput);
 }
 
 TEST(WoodburySolver, BadInputsAreStatuses) {

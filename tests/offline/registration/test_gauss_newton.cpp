@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 #include <string>
@@ -35,6 +36,23 @@ namespace {
 
 using testing::at_vertex;
 using testing::soft_tissue;
+
+// GaussNewtonOptions::inverted_equilibrium_fallback below rescue_min_damping (issue 51): the best
+// trial whose only equilibrium inverts a tet is taken only when no trial of the iteration lowered
+// Φ, and only when it lowers Φ itself (the bunny twisted 45° went 0.087 → 0.382 mm when an
+// inverted μ = 0 step was taken although μ = 100 lowered Φ uninverted).
+TEST(LineSearch, ADeferredInvertedTrialIsTakenOnlyWhenNoTrialLoweredPhi) {
+  const double before = 10.0;
+  // No trial lowered Φ (the best is still η = 0 at Φ before): taken when it lowers Φ.
+  EXPECT_TRUE(take_deferred_inverted_trial(0.0, before, 9.0));
+  EXPECT_FALSE(take_deferred_inverted_trial(0.0, before, 10.0));
+  EXPECT_FALSE(take_deferred_inverted_trial(0.0, before, 11.0));
+  // None kept aside (+∞).
+  EXPECT_FALSE(take_deferred_inverted_trial(0.0, before, std::numeric_limits<double>::infinity()));
+  // An uninverted trial lowered Φ (η > 0): never taken, even when the inverted one is lower.
+  EXPECT_FALSE(take_deferred_inverted_trial(0.5, 9.5, 1.0));
+  EXPECT_FALSE(take_deferred_inverted_trial(1.0, 9.99, 9.0));
+}
 
 TEST(BrentMinimise, FindsSmoothAndKinkedMinima) {
   int calls = 0;
@@ -600,6 +618,50 @@ TEST_F(GaussNewtonIcpBar, TheConstantStrainLimitShrinksTheDampedStepsMeanToo) {
   ASSERT_TRUE(from.summary.usable()) << from.summary.full_report();
   EXPECT_EQ(below.s, damped.s);
   EXPECT_EQ(from.s, limited.s);
+}
+
+// Held tets (hold_clamped_tets) by penalty rows or, once those rows would take more than
+// held_penalty_max_bytes, by elimination (issue 51: the bunny bent 90° was killed at 22 GB holding
+// hundreds of tets by six rows each). One ICP iteration from the template with an eigenvalue
+// floor just below 1, so that the plain step clamps tets and the step is solved again holding
+// them: with the bytes unbounded the rows hold them, with 0 elimination does, the report says
+// which, the held tets' s stays at the template's in both, and the two steps agree to the
+// penalty's stiffness (1e3 times the largest row: 1e-6 of the held curvature).
+TEST_F(GaussNewtonIcpBar, ManyHeldTetsAreHeldByEliminationWithoutPenaltyRows) {
+  BoundaryClosestPoint& closest = *boundary;
+  const Eigen::Index m = bar.mesh.tets.rows();
+  const Eigen::VectorXd identity = identity_plastic_strains(m);
+  auto one_icp_iteration = [&](double max_bytes) {
+    GaussNewtonCheckpoint start;
+    start.next_stage = RegistrationStage::kIcpMarkers;
+    start.s = identity;
+    start.x = bar.energy->rest_dofs();
+    start.initial_objective = 1.0;
+    GaussNewtonOptions options;
+    options.max_iterations_per_stage = 1;
+    options.hold_clamped_tets = true;
+    options.eigenvalue_floor = 0.999;
+    options.held_penalty_max_bytes = max_bytes;
+    return register_attached(*bar.energy, constraints, &closest, options, {}, {}, &start);
+  };
+  const RegistrationResult rows = one_icp_iteration(1e300);
+  const RegistrationResult eliminated = one_icp_iteration(0.0);
+  ASSERT_TRUE(rows.summary.usable()) << rows.summary.full_report();
+  ASSERT_TRUE(eliminated.summary.usable()) << eliminated.summary.full_report();
+  const GaussNewtonIteration& a = rows.summary.iterations.back();
+  const GaussNewtonIteration& b = eliminated.summary.iterations.back();
+  ASSERT_GT(a.held_tets, 0) << rows.summary.full_report();
+  EXPECT_EQ(a.held_tets, b.held_tets);
+  EXPECT_FALSE(a.held_by_elimination);
+  EXPECT_TRUE(b.held_by_elimination);
+  ASSERT_GT(b.step, 0.0);
+  EXPECT_LT(b.objective, b.objective_before);
+  const double change = (rows.s - identity).norm();
+  ASSERT_GT(change, 0.0);
+  EXPECT_LT((eliminated.s - rows.s).norm(), 1e-3 * change);
+  GaussNewtonOptions bad;
+  bad.held_penalty_max_bytes = -1.0;
+  EXPECT_TRUE(bad.validate().has_value());
 }
 
 // Attachments far from the template (the far end of a bar twisted by 135° about its axis, as in
