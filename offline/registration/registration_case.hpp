@@ -132,9 +132,10 @@ struct RegistrationCase {
     /// F}) and inverted_equilibrium_fallback ({"inverted_equilibrium_fallback": B}), both acting
     /// on directions damped at μ ≥ rescue_min_damping ({"rescue_min_damping": F}); defaults off
     /// (0, false; 1e3). With 0.5 and true the bunny bulged 2x (attached) converges where it
-    /// stalls and the rows that converge are unchanged, but the bunny bent 90° (attached) then
-    /// reaches a step with 705 clamped tets held and was killed for memory (22 GB) where it
-    /// stalls with a report (issue 51, docs/registration.md "Default-safe").
+    /// stalls and the rows that converge are unchanged; the bunny bent 90° (attached), killed
+    /// for memory (22 GB) while held tets were penalty rows, converges with the held tets
+    /// eliminated (GaussNewtonOptions::held_penalty_max_bytes; 2.3 GB). Still off: the bunny
+    /// bulged 2x was not rerun with that bound (issue 51, docs/registration.md "Default-safe").
     double constant_strain_step_limit = 0.0;
     bool inverted_equilibrium_fallback = false;
     double rescue_min_damping = 1e3;
