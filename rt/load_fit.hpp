@@ -21,6 +21,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <array>
 #include <optional>
 #include <string>
 
@@ -92,8 +93,17 @@ class LoadFit {
   /// (a frictionless contact pushes along the normal: the axial part of a point force barely
   /// shows in the shape, and left free it wanders and corrupts the rest). No allocation while
   /// the number of parameters stays the same from call to call.
+  ///
+  /// With `fractions` (one per point, in [0, 1); needs `directions`), point k's force acts that
+  /// fraction of the way from fine node points[k] to the next: as the consistent nodal loads of a
+  /// point force on that fine element (cubic Hermite: the forces and moments at its two nodes that
+  /// do the same work), its part along the element taken linearly; the element's axes are the
+  /// tracked chord's about it. A contact then sits where it is measured instead of at the nearest
+  /// fine node (on the shared renderer's exact elastica the snap alone read the follicle moment
+  /// 4 % off at the tracker's element length: tests/rt/test_load_fit_elastica.cpp).
   LoadFitSummary fit(const Eigen::Ref<const Eigen::VectorXd>& tracked, const int* points, int count,
-                     const double* directions = nullptr) noexcept;
+                     const double* directions = nullptr,
+                     const double* fractions = nullptr) noexcept;
   /// The fitted loads: (2 or 3, or 1 with directions) per load point of the last fit(), in its
   /// order.
   Eigen::Ref<const Eigen::VectorXd> loads() const { return q_.head(params_); }
@@ -121,13 +131,18 @@ class LoadFit {
   void reset() noexcept;
 
  private:
-  bool coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations);
+  // Sets *equilibrium when it ends at an equilibrium of its loads, converged or not.
+  bool coupled(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations,
+               bool* equilibrium);
   // Sets *equilibrium when it ends at an equilibrium of its loads, converged or not.
   bool nested(const Eigen::Ref<const Eigen::VectorXd>& tracked, int* iterations, bool* equilibrium);
-  bool step(bool robust);
+  bool step(bool robust, bool scaled_ridge);
   // covariance_ and the noise from the last step's weights and Jacobian and the final residual_.
   double update_covariance(bool equilibrium) noexcept;
   void residual(const Eigen::Ref<const Eigen::VectorXd>& tracked, const Eigen::VectorXd& u);
+  // consistent_ for this call's points with fractions.
+  void consistent_loads(const Eigen::Ref<const Eigen::VectorXd>& tracked, const double* fractions,
+                        int count) noexcept;
   // f += sign · E q: this call's loads at their dofs.
   void add_loads(Eigen::VectorXd& f, double sign) const;
   // z = E e_j: the unit load of parameter j, zero on fixed dofs.
@@ -151,7 +166,11 @@ class LoadFit {
   double base_offsets_[3] = {0.0, 0.0, 0.0};  // the last fit's support offsets, by dof
   const int* points_ = nullptr;               // this call's load points
   const double* directions_ = nullptr;        // and their force directions (null: free)
-  int pp_ = 2;                                // parameters per load point in this call
+  // Per point of this call with a fraction: the unit force's consistent nodal loads on its fine
+  // element, force at the first node (x, y), its moment, then the same at the second node.
+  bool fractional_ = false;
+  std::array<std::array<double, 6>, 64> consistent_{};
+  int pp_ = 2;                   // parameters per load point in this call
   double rotation_scale_ = 1.0;  // rotations enter the fit as arc lengths over one element
   Eigen::VectorXd u_, loads_prev_, rhs_, du_, z_, u_backup_;
   Eigen::MatrixXd columns_;  // K_T⁻¹E, one column per load parameter

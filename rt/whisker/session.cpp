@@ -275,17 +275,19 @@ WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const Whis
   LoadFit& fit = *contact_fit_[w];
   // Against the rest shape: displacements and rotations since the rest frame.
   contact_target_[w] = t.state() - rest_state_[w];
-  // The fit's node nearest the contact, by arc length along the tracked whisker.
+  // The contact by arc length along the tracked whisker: between the fit's fine nodes `point`
+  // and the next, `fraction` of the way (LoadFit's consistent nodal loads), at least at node 1.
   const int fine = fit.model().num_nodes();
   const double length = tracker_->result(w).length_px;
-  const int point =
-      std::clamp(static_cast<int>(std::lround(c.arc_length_px / length * (fine - 1))), 1, fine - 1);
+  const double at = std::clamp(c.arc_length_px / length * (fine - 1), 1.0, fine - 1.0);
+  const int point = std::min(static_cast<int>(at), fine - 1);
+  const double fraction = at - point;
   // A frictionless contact pushes along the whisker's normal there: the tracked element's.
   const int elements = t.num_nodes() - 1;
   const int e = std::clamp(point * elements / (fine - 1), 0, elements - 1);
   const Eigen::Vector2d chord = (t.node_position(e + 1) - t.node_position(e)).normalized();
   const double normal[2] = {-chord.y(), chord.x()};
-  const LoadFitSummary s = fit.fit(contact_target_[w], &point, 1, normal);
+  const LoadFitSummary s = fit.fit(contact_target_[w], &point, 1, normal, &fraction);
   WhiskerSessionWhisker::ContactLoad load;
   load.converged = s.converged;
   load.rms_px = s.rms_px;
@@ -296,6 +298,10 @@ WhiskerSessionWhisker::ContactLoad WhiskerSession::fit_contact(int w, const Whis
   load.force = fit.loads()[0] * Eigen::Vector2d(normal[0], normal[1]);
   const Eigen::Matrix2Xd& X = fit.model().rest_positions();
   load.point = X.col(point) + fit.state().segment<2>(3 * point);
+  if (point + 1 < fine) {
+    load.point +=
+        fraction * (X.col(point + 1) + fit.state().segment<2>(3 * point + 3) - load.point);
+  }
   const Eigen::Vector2d arm = load.point - (X.col(0) + fit.state().segment<2>(0));
   // With a scale the force is in newtons and the arm in pixels: the moment in N·m.
   const WhiskerPhysics& ph = options_.readout.physics;
