@@ -1,7 +1,9 @@
 #include "rt/whisker/detection.hpp"
 
 #include "common/detail/field_error.hpp"
+#include "rt/whisker/detail/chessboard_distance.hpp"
 #include "rt/whisker/detail/ellipse_dilation.hpp"
+#include "rt/whisker/detail/float_select.hpp"
 
 #include <Eigen/QR>
 #include <algorithm>
@@ -120,10 +122,47 @@ struct Maps {
   double noise = 0.0;     // robust σ of the contrast map over the backlight, per cent
   double seed = 0.0, follow = 0.0;  // thresholds in force: the options' or the noise's
   double contrast_scale = 1.0;      // contrast_scale(backlight, dark level)
+  // How deep inside the dark mask each pixel lies (chessboard distance to the nearest pixel off
+  // it, capped at 255): the ridge maps (nx, ny, contrast, near_contrast) are built only to the
+  // depths below. Empty: built over the whole frame.
+  cv::Mat depth;
+  // Set by a read of the ridge maps deeper than they were built: detection starts again with
+  // them built over the whole frame (detect_whiskers), so the result never depends on the depth.
+  mutable bool missed = false;
 };
+
+// Where the ridge maps are built. Every stage reads them off the dark mask (the noise, the seeds,
+// the traces, which end on their first dark point) or a few pixels into it (a follicle is refined
+// up to 5 px past that point, and a smoothed trace's extension ends there too): the final
+// contrast maps are built to kReadDepth px inside the dark mask. They are the averaged maps
+// smoothed by a Gaussian of σ = contrast_smoothing_px, which OpenCV's float GaussianBlur
+// evaluates over ±kBlurReach px (kernel size round(8σ + 1) | 1), so the averaged maps are built
+// kBlurReach px deeper; the averaging reads the raw maps within contrast_averaging_px + 1 px
+// (bilinear), so those (and the normal, read at the same pixel) are built deeper still.
+constexpr int kReadDepth = 10;
+constexpr int kBlurReach = 4;
+constexpr int kAveragedDepth = kReadDepth + kBlurReach;
+constexpr int kRawDepth = kAveragedDepth + kFixed.contrast_averaging_px + 1;
+static_assert(kFixed.contrast_smoothing_px == 1.0, "kBlurReach is OpenCV's radius at sigma 1");
+static_assert(kRawDepth < 255, "depths are kept in bytes");
+
+// Whether the pixels a bilinear read at (x, y) touches were built to `limit` (see kReadDepth);
+// records a read that was not (Maps::missed). Reads outside the frame touch nothing.
+[[gnu::always_inline]] inline bool built(const Maps& m, int limit, double x, double y) {
+  const cv::Mat& d = m.depth;
+  if (d.empty() || !(x >= 0.0 && y >= 0.0 && x <= d.cols - 1.0 && y <= d.rows - 1.0)) return true;
+  const int x0 = std::min(static_cast<int>(x), d.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), d.rows - 2);
+  const std::uint8_t* r0 = d.ptr<std::uint8_t>(y0);
+  const std::uint8_t* r1 = d.ptr<std::uint8_t>(y0 + 1);
+  if (std::max(std::max(r0[x0], r0[x0 + 1]), std::max(r1[x0], r1[x0 + 1])) <= limit) return true;
+  m.missed = true;
+  return false;
+}
 
 // Ridge normal at (x, y): direction of the largest eigenvalue of the Hessian there.
 Eigen::Vector2d normal_at(const Maps& m, double x, double y) {
+  built(m, kRawDepth, x, y);
   float a = 1.0f, b = 0.0f;
   sample(m.nx, x, y, &a);
   sample(m.ny, x, y, &b);
@@ -133,12 +172,14 @@ Eigen::Vector2d normal_at(const Maps& m, double x, double y) {
   if (n.norm() < 0.5) {
     const int xi = std::clamp(static_cast<int>(std::lround(x)), 0, m.nx.cols - 1);
     const int yi = std::clamp(static_cast<int>(std::lround(y)), 0, m.nx.rows - 1);
+    if (!m.depth.empty() && m.depth.at<std::uint8_t>(yi, xi) > kRawDepth) m.missed = true;
     n = Eigen::Vector2d(m.nx.at<float>(yi, xi), m.ny.at<float>(yi, xi));
   }
   return n.normalized();
 }
 
 float contrast_at(const Maps& m, const Eigen::Vector2d& p) {
+  built(m, kReadDepth, p.x(), p.y());
   float v = 0.0f;
   return sample(m.contrast, p.x(), p.y(), &v) ? v : 0.0f;
 }
@@ -149,12 +190,13 @@ float contrast_at(const Maps& m, const Eigen::Vector2d& p) {
 // maximum at the window's edge is the flank of a darker neighbour 4-6 px away, and re-centring
 // onto it walked the trace over to the neighbour. Farther out it is kept: a whisker pressed
 // against a pole has its ridge there (rendered pad: 41 contact frames missed without it).
-double across_maximum(const cv::Mat& map, const Eigen::Vector2d& q, const Eigen::Vector2d& n,
-                      bool local_only, double* offset) {
+double across_maximum(const Maps& m, const cv::Mat& map, const Eigen::Vector2d& q,
+                      const Eigen::Vector2d& n, bool local_only, double* offset) {
   constexpr int kReach = 6;
   float v[2 * kReach + 1];
   for (int k = -kReach; k <= kReach; ++k) {
     const Eigen::Vector2d r = q + 0.25 * k * n;
+    built(m, kReadDepth, r.x(), r.y());
     if (!sample(map, r.x(), r.y(), &v[k + kReach])) v[k + kReach] = 0.0f;
   }
   double best = -1e9;
@@ -182,12 +224,17 @@ float face_distance(const Maps& m, const Eigen::Vector2d& p) {
 
 // The backlight's level (the 95th percentile of the frame smoothed by 4 px) and the face's (its
 // 1st percentile).
-void measure_levels(const cv::Mat& coarse, double* backlight, double* dark_level) {
-  std::vector<float> values(coarse.begin<float>(), coarse.end<float>());
-  std::nth_element(values.begin(), values.begin() + values.size() * 95 / 100, values.end());
-  *backlight = values[values.size() * 95 / 100];
-  std::nth_element(values.begin(), values.begin() + values.size() / 100, values.end());
-  *dark_level = std::min<double>(values[values.size() / 100], *backlight);
+void measure_levels(const cv::Mat& coarse, detail::FloatSelect& select, double* backlight,
+                    double* dark_level) {
+  auto visit = [&](auto&& f) {
+    for (int y = 0; y < coarse.rows; ++y) {
+      const float* row = coarse.ptr<float>(y);
+      for (int x = 0; x < coarse.cols; ++x) f(row[x]);
+    }
+  };
+  const std::size_t n = select.histogram(visit);
+  *backlight = select.kth(n * 95 / 100, visit);
+  *dark_level = std::min<double>(select.kth(n / 100, visit), *backlight);
 }
 
 // The unit direction (cos θ, sin θ) of the largest eigenvalue of the symmetric [[a, b], [b, c]],
@@ -216,15 +263,27 @@ inline void largest_curvature_direction(double a, double b, double c, double* nx
   }
 }
 
-Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSide* side,
-                double* backlight, double* dark_level) {
-  Maps m;
+// The buffers a detection fills besides its maps (WhiskerDetectionWorkspace::Buffers).
+struct Scratch {
+  cv::Mat f, hs, dxx, dyy, dxy, coarse, labels, not_face, raw;
+  detail::FloatSelect select;
+  std::vector<int> hits;
+  cv::Mat claimed, taken;
+  cv::Mat objects, object_labels, not_objects, object_distance;
+};
+
+// Fills the maps (in m, which keeps its buffers from the last frame) and resolves the face side.
+// by_depth: the ridge maps only where a stage reads them (kReadDepth); else over the whole frame.
+void build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, bool by_depth,
+                FaceSide* side, double* backlight, double* dark_level, Maps& m, Scratch& scratch) {
+  m.noise = 0.0;
+  m.missed = false;
   const cv::Mat grey(frame.height, frame.width, CV_8UC1, const_cast<std::uint8_t*>(frame.data),
                      static_cast<std::size_t>(frame.stride));
-  cv::Mat f;
+  cv::Mat& f = scratch.f;
   grey.convertTo(f, CV_32F);
   cv::GaussianBlur(f, m.smooth, cv::Size(), kFixed.smoothing_px);
-  cv::Mat hs, dxx, dyy, dxy;
+  cv::Mat &hs = scratch.hs, &dxx = scratch.dxx, &dyy = scratch.dyy, &dxy = scratch.dxy;
   cv::GaussianBlur(f, hs, cv::Size(), kFixed.orientation_scale_px);
   cv::Sobel(hs, dxx, CV_32F, 2, 0, 3);
   cv::Sobel(hs, dyy, CV_32F, 0, 2, 3);
@@ -232,13 +291,13 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
   // Dark regions: heavily smoothed (whiskers vanish), below dark_threshold (higher where the
   // face stands out less: the shared video with its contrast halved had no face below 0.35 of
   // the backlight; docs/whisker_benchmark.md).
-  cv::Mat coarse;
+  cv::Mat& coarse = scratch.coarse;
   cv::GaussianBlur(f, coarse, cv::Size(), 4.0);
-  measure_levels(coarse, backlight, dark_level);
+  measure_levels(coarse, scratch.select, backlight, dark_level);
   cv::compare(coarse, dark_threshold(o.dark_fraction, *backlight, *dark_level), m.dark, cv::CMP_LT);
 
   // The face: the dark components touching the chosen border.
-  cv::Mat labels;
+  cv::Mat& labels = scratch.labels;
   const int count = cv::connectedComponents(m.dark, labels, 8, CV_32S);
   auto border_labels = [&](FaceSide s2, std::vector<int>* hits) {
     hits->assign(count, 0);
@@ -254,7 +313,7 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
     for (int i = 1; i < count; ++i) total += (*hits)[i];
     return static_cast<double>(total) / n;
   };
-  std::vector<int> hits;
+  std::vector<int>& hits = scratch.hits;
   if (*side == FaceSide::kAuto) {
     double best = -1.0;
     for (FaceSide s2 : {FaceSide::kLeft, FaceSide::kRight, FaceSide::kTop, FaceSide::kBottom}) {
@@ -266,30 +325,48 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
     }
   }
   border_labels(*side, &hits);
-  m.face = cv::Mat::zeros(f.size(), CV_8U);
+  m.face.create(f.size(), CV_8U);
   for (int y = 0; y < labels.rows; ++y) {
-    for (int x = 0; x < labels.cols; ++x) {
-      if (hits[labels.at<int>(y, x)] > 0) m.face.at<std::uint8_t>(y, x) = 255;
-    }
+    const int* label = labels.ptr<int>(y);
+    std::uint8_t* face = m.face.ptr<std::uint8_t>(y);
+    for (int x = 0; x < labels.cols; ++x) face[x] = hits[label[x]] > 0 ? 255 : 0;
   }
-  cv::Mat not_face;
+  cv::Mat& not_face = scratch.not_face;
   cv::bitwise_not(m.face, not_face);
   cv::distanceTransform(not_face, m.distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   m.nx.create(f.size(), CV_32F);
   m.ny.create(f.size(), CV_32F);
   m.contrast.create(f.size(), CV_32F);
+  if (by_depth) {
+    detail::chessboard_distance(m.dark, m.depth);
+  } else {
+    m.depth.release();
+  }
   const bool near = o.near_follow_px > 0.0;
   // The second map is read only near the face: computed there (and as far out as its averaging
   // and smoothing reach), zero elsewhere.
   const float near_band =
       static_cast<float>(o.near_follow_px + kFixed.surround_px + kFixed.contrast_averaging_px +
                          3.0 * kFixed.contrast_smoothing_px);
-  if (near) m.near_contrast = cv::Mat::zeros(f.size(), CV_32F);
+  if (near) {
+    m.near_contrast.create(f.size(), CV_32F);
+  } else {
+    m.near_contrast.release();
+  }
   const double s = kFixed.surround_px;
   static_assert(kFixed.surround_px + 1 <= kInsideMargin, "sample_near reaches 3 px");
   for (int y = 0; y < f.rows; ++y) {
     const bool inside_row = y >= kInsideMargin && y < f.rows - kInsideMargin;
+    const std::uint8_t* depth = by_depth ? m.depth.ptr<std::uint8_t>(y) : nullptr;
     for (int x = 0; x < f.cols; ++x) {
+      if (depth && depth[x] > kRawDepth) {
+        // Deep inside a dark region, where nothing reads the maps (built()): fixed values.
+        m.nx.at<float>(y, x) = 1.0f;
+        m.ny.at<float>(y, x) = 0.0f;
+        m.contrast.at<float>(y, x) = 0.0f;
+        if (near) m.near_contrast.at<float>(y, x) = 0.0f;
+        continue;
+      }
       const bool inside = inside_row && x >= kInsideMargin && x < f.cols - kInsideMargin;
       // Sobel's second-derivative kernels carry a factor 4 (dxx, dyy) and 4 (dxy) alike.
       const double a = dxx.at<float>(y, x), c = dyy.at<float>(y, x), b = dxy.at<float>(y, x);
@@ -324,13 +401,16 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
     if (map->empty()) continue;
     const bool banded = map == &m.near_contrast;
     if (kFixed.contrast_averaging_px > 0) {
-      cv::Mat raw = map->clone();
+      cv::Mat& raw = scratch.raw;
+      map->copyTo(raw);
       constexpr int reach = kFixed.contrast_averaging_px;
       static_assert(reach + 1 <= kInsideMargin, "sample_near reaches 3 px");
       for (int y = 0; y < f.rows; ++y) {
         const bool inside_row = y >= kInsideMargin && y < f.rows - kInsideMargin;
+        const std::uint8_t* depth = by_depth ? m.depth.ptr<std::uint8_t>(y) : nullptr;
         for (int x = 0; x < f.cols; ++x) {
           if (banded && !(m.distance.at<float>(y, x) < near_band)) continue;
+          if (depth && depth[x] > kAveragedDepth) continue;  // never read: keeps the raw value
           const bool inside = inside_row && x >= kInsideMargin && x < f.cols - kInsideMargin;
           const double tx = -m.ny.at<float>(y, x), ty = m.nx.at<float>(y, x);
           double sum = 0.0;
@@ -364,23 +444,21 @@ Maps build_maps(const ImageView& frame, const WhiskerDetectionOptions& o, FaceSi
 
   // The contrast map's noise: most backlight pixels are on no ridge, so the median |contrast|
   // there is the noise's (× 1.4826 for σ).
-  std::vector<float> background;
-  background.reserve(static_cast<std::size_t>(f.total()));
-  for (int y = 0; y < f.rows; ++y) {
-    for (int x = 0; x < f.cols; ++x) {
-      if (!m.dark.at<std::uint8_t>(y, x))
-        background.push_back(std::abs(m.contrast.at<float>(y, x)));
+  auto background = [&](auto&& visit) {
+    for (int y = 0; y < f.rows; ++y) {
+      const std::uint8_t* dark = m.dark.ptr<std::uint8_t>(y);
+      const float* contrast = m.contrast.ptr<float>(y);
+      for (int x = 0; x < f.cols; ++x) {
+        if (!dark[x]) visit(std::abs(contrast[x]));
+      }
     }
-  }
-  if (!background.empty()) {
-    std::nth_element(background.begin(), background.begin() + background.size() / 2,
-                     background.end());
-    m.noise = 1.4826 * background[background.size() / 2];
+  };
+  if (const std::size_t n = scratch.select.histogram(background); n > 0) {
+    m.noise = 1.4826 * scratch.select.kth(n / 2, background);
   }
   m.contrast_scale = contrast_scale(*backlight, *dark_level);
   m.seed = std::max(o.seed_contrast * m.contrast_scale, kFixed.seed_noise_factor * m.noise);
   m.follow = std::max(o.follow_contrast * m.contrast_scale, kFixed.follow_noise_factor * m.noise);
-  return m;
 }
 
 struct Trace {
@@ -427,12 +505,12 @@ Trace follow(const Maps& m, const WhiskerDetectionOptions& o, Eigen::Vector2d p,
     // Re-centre: the contrast maximum across the ridge within ±1.5 px.
     double best_offset = 0.0;
     const bool near_face = face_distance(m, q) < o.near_follow_px;
-    double best = across_maximum(m.contrast, q, n, near_face, &best_offset);
+    double best = across_maximum(m, m.contrast, q, n, near_face, &best_offset);
     if (best < m.follow && !m.near_contrast.empty() && near_face) {
       // Beside a neighbour 3-4 px away (whiskers converging on the pad) the side sample falls on
       // its shoulder and the contrast reads ~0: read the gap before it instead.
       double near_offset = 0.0;
-      const double best_near = across_maximum(m.near_contrast, q, n, true, &near_offset);
+      const double best_near = across_maximum(m, m.near_contrast, q, n, true, &near_offset);
       if (best_near >= m.follow) {
         best = best_near;
         best_offset = near_offset;
@@ -823,10 +901,12 @@ std::optional<Eigen::Vector2d> pad_centre_of(const std::vector<Candidate>& found
 }
 
 std::vector<Candidate> trace_seeds(const Maps& m, const WhiskerDetectionOptions& o,
-                                   const std::vector<Seed>& seeds, WhiskerDetection& result) {
+                                   const std::vector<Seed>& seeds, cv::Mat& claimed,
+                                   WhiskerDetection& result) {
   // Trace each seed not already on a traced whisker both ways along its ridge; the end nearer the
   // face is the follicle.
-  cv::Mat claimed = cv::Mat::zeros(m.contrast.size(), CV_8U);
+  claimed.create(m.contrast.size(), CV_8U);
+  claimed.setTo(0);
   auto claim = [&](const std::vector<Eigen::Vector2d>& points) {
     for (const auto& p : points) {
       cv::circle(claimed, cv::Point(int(std::lround(p.x())), int(std::lround(p.y()))), 1, 255, -1);
@@ -993,12 +1073,13 @@ void drop_off_pad(std::vector<Candidate>& found, const WhiskerDetectionOptions& 
 }
 
 void accept_longest(std::vector<Candidate>& found, const Maps& m, const WhiskerDetectionOptions& o,
-                    WhiskerDetection& result) {
+                    cv::Mat& taken, WhiskerDetection& result) {
   // The longest first; a trace running along an accepted one over most of its length is it.
   std::sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
     return a.whisker.length_px > b.whisker.length_px;
   });
-  cv::Mat taken = cv::Mat::zeros(m.contrast.size(), CV_8U);
+  taken.create(m.contrast.size(), CV_8U);
+  taken.setTo(0);
   const int radius = std::max(1, static_cast<int>(std::lround(kFixed.min_separation_px)));
   for (auto& candidate : found) {
     DetectedWhisker& w = candidate.whisker;
@@ -1019,13 +1100,14 @@ void accept_longest(std::vector<Candidate>& found, const Maps& m, const WhiskerD
   }
 }
 
-void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetection& result) {
+void find_objects(const Maps& m, const WhiskerDetectionOptions& o, Scratch& scratch,
+                  WhiskerDetection& result) {
   // What a whisker can touch: dark objects at the light smoothing's sharpness (the heavily
   // smoothed dark mask lies pixels inside a pole's edge: 5.8 px from a whisker pressed against an
   // 8 px pole) that come no nearer the face than twice the pad band (its outline, fur and
   // shadows are darker at this sharpness: a tip over the cheek is no contact; shared video, a
   // shadow 5-10 px off the cheek read as 16 contact frames of a whisker that touches nothing).
-  cv::Mat objects, object_labels;
+  cv::Mat &objects = scratch.objects, &object_labels = scratch.object_labels;
   cv::compare(m.smooth, dark_threshold(o.object_fraction, result.backlight, result.dark_level),
               objects, cv::CMP_LT);
   const int reach = 2 * static_cast<int>(std::lround(kFixed.pad_band_px)) + 1;
@@ -1045,7 +1127,7 @@ void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetect
     }
   }
   if (cv::countNonZero(objects) > 0) {
-    cv::Mat not_objects, distance;
+    cv::Mat &not_objects = scratch.not_objects, &distance = scratch.object_distance;
     cv::bitwise_not(objects, not_objects);
     cv::distanceTransform(not_objects, distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
     cv::min(distance, 255.0, distance);
@@ -1059,7 +1141,33 @@ void find_objects(const Maps& m, const WhiskerDetectionOptions& o, WhiskerDetect
 
 }  // namespace
 
+struct WhiskerDetectionWorkspace::Buffers {
+  Maps maps;
+  Scratch scratch;
+  int detections = 0;
+  int full_rebuilds = 0;
+};
+
+WhiskerDetectionWorkspace::WhiskerDetectionWorkspace() : buffers_(std::make_unique<Buffers>()) {}
+WhiskerDetectionWorkspace::~WhiskerDetectionWorkspace() = default;
+WhiskerDetectionWorkspace::WhiskerDetectionWorkspace(WhiskerDetectionWorkspace&&) noexcept =
+    default;
+WhiskerDetectionWorkspace& WhiskerDetectionWorkspace::operator=(
+    WhiskerDetectionWorkspace&&) noexcept = default;
+int WhiskerDetectionWorkspace::detections() const {
+  return buffers_->detections;
+}
+int WhiskerDetectionWorkspace::full_rebuilds() const {
+  return buffers_->full_rebuilds;
+}
+
 WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& o) {
+  WhiskerDetectionWorkspace workspace;
+  return detect_whiskers(frame, o, workspace);
+}
+
+WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& o,
+                                 WhiskerDetectionWorkspace& workspace) {
   WhiskerDetection result;
   if (auto err = o.validate()) {
     result.error = *err;
@@ -1069,24 +1177,36 @@ WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionO
     result.error = "whisker detection: the frame is empty or smaller than 16 x 16 pixels";
     return result;
   }
+  WhiskerDetectionWorkspace::Buffers& buffers = workspace.buffers();
+  Maps& m = buffers.maps;
+  ++buffers.detections;
+  // The ridge maps are first built only where the stages read them (kReadDepth); should a stage
+  // read deeper into a dark region, everything is done again with them built everywhere, so the
+  // result is the same as with the whole frame's maps.
   FaceSide side = o.face;
-  const Maps m = build_maps(frame, o, &side, &result.backlight, &result.dark_level);
-  result.face = side;
-  result.noise_percent = m.noise;
-  result.seed_contrast = m.seed;
-  result.follow_contrast = m.follow;
-  if (cv::countNonZero(m.face) == 0) {
-    result.error = std::string("whisker detection: no dark region touches the ") + to_string(side) +
-                   " border (no face); is the face on another side?";
-    return result;
+  for (const bool by_depth : {true, false}) {
+    result = WhiskerDetection{};
+    side = o.face;
+    build_maps(frame, o, by_depth, &side, &result.backlight, &result.dark_level, m,
+               buffers.scratch);
+    result.face = side;
+    result.noise_percent = m.noise;
+    result.seed_contrast = m.seed;
+    result.follow_contrast = m.follow;
+    if (cv::countNonZero(m.face) == 0) {
+      result.error = std::string("whisker detection: no dark region touches the ") +
+                     to_string(side) + " border (no face); is the face on another side?";
+      return result;
+    }
+    const std::vector<Seed> seeds = find_seeds(m);
+    result.seeds = static_cast<int>(seeds.size());
+    std::vector<Candidate> found = trace_seeds(m, o, seeds, buffers.scratch.claimed, result);
+    drop_off_pad(found, o, result);
+    accept_longest(found, m, o, buffers.scratch.taken, result);
+    if (!m.missed) break;
+    ++buffers.full_rebuilds;
   }
-
-  const std::vector<Seed> seeds = find_seeds(m);
-  result.seeds = static_cast<int>(seeds.size());
-  std::vector<Candidate> found = trace_seeds(m, o, seeds, result);
-  drop_off_pad(found, o, result);
-  accept_longest(found, m, o, result);
-  find_objects(m, o, result);
+  find_objects(m, o, buffers.scratch, result);
 
   // Identities in order along the face's edge: by the follicle's coordinate along that border.
   const bool vertical = side == FaceSide::kLeft || side == FaceSide::kRight;

@@ -16,6 +16,7 @@
 /// not run along a longer one.
 
 #include <Eigen/Core>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -153,7 +154,34 @@ double contrast_scale(double backlight, double dark_level);
 /// level up to the backlight (a lit face, a video of low contrast).
 double dark_threshold(double fraction, double backlight, double dark_level);
 
+/// The frame-sized maps and buffers a detection fills, kept from one detection to the next: a
+/// session detecting again on every frame reuses them instead of allocating ~20 maps per frame
+/// (their page faults were a visible share of its time). Sized by the first frame, re-sized when a
+/// frame of another size comes. One per thread; it holds no result.
+class WhiskerDetectionWorkspace {
+ public:
+  WhiskerDetectionWorkspace();
+  ~WhiskerDetectionWorkspace();
+  WhiskerDetectionWorkspace(WhiskerDetectionWorkspace&&) noexcept;
+  WhiskerDetectionWorkspace& operator=(WhiskerDetectionWorkspace&&) noexcept;
+
+  /// Detections run with it, and how many of them built the ridge maps a second time over the
+  /// whole frame because a stage read them deeper inside a dark region than they are first built
+  /// (the result is the same either way; this only counts the cost).
+  int detections() const;
+  int full_rebuilds() const;
+
+  struct Buffers;  ///< defined in detection.cpp
+  Buffers& buffers() { return *buffers_; }
+
+ private:
+  std::unique_ptr<Buffers> buffers_;
+};
+
 /// Detects the whiskers of one 8-bit grey frame.
 WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& options);
+/// The same, with the maps kept in (and reused from) a workspace: the same result.
+WhiskerDetection detect_whiskers(const ImageView& frame, const WhiskerDetectionOptions& options,
+                                 WhiskerDetectionWorkspace& workspace);
 
 }  // namespace sinew::rt

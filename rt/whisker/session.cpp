@@ -52,7 +52,7 @@ std::string WhiskerSession::process(const ImageView& frame) {
   if (!tracker_) {
     if (auto err = options_.validate()) return *err;
     const auto t0 = std::chrono::steady_clock::now();
-    first_ = detect_whiskers(frame, options_.detection);
+    first_ = detect_whiskers(frame, options_.detection, detection_workspace_);
     first_seconds_ = seconds_since(t0);
     if (!first_.error.empty()) return first_.error;
     std::vector<std::vector<Eigen::Vector2d>> traces;
@@ -131,7 +131,7 @@ std::string WhiskerSession::process(const ImageView& frame) {
   bool have_objects = false;
   if (redetected_) {
     const auto t0 = std::chrono::steady_clock::now();
-    WhiskerDetection again = detect_whiskers(frame, options_.detection);
+    WhiskerDetection again = detect_whiskers(frame, options_.detection, detection_workspace_);
     std::vector<std::vector<Eigen::Vector2d>> traces;
     std::vector<double> contrasts;
     for (const auto& w : again.whiskers) {

@@ -205,6 +205,8 @@ class WhiskerSession {
   WhiskerSessionOptions options_;
   WhiskerDetection first_;
   double first_seconds_ = 0.0;
+  // The maps of every detection, reused from frame to frame.
+  WhiskerDetectionWorkspace detection_workspace_;
   std::optional<WhiskerTracker> tracker_;
   std::vector<WhiskerReadoutModel> readouts_;
   std::vector<WhiskerPhysics> physics_;

@@ -248,6 +248,53 @@ TEST(WhiskerDetection, ATipOverTheCheekIsNotAFollicle) {
   EXPECT_LT((d.whiskers.back().follicle - true_follicle).norm(), 8.0);
 }
 
+// A workspace keeps the maps from one detection to the next (a session detects on every frame):
+// reused across different frames, a frame of another size and back, it gives what a fresh
+// detection gives, to the bit.
+TEST(WhiskerDetection, AReusedWorkspaceGivesWhatAFreshDetectionGives) {
+  WhiskerDetectionOptions o;
+  o.face = FaceSide::kLeft;
+  o.keep_rejected = true;
+  const Scene a = scene(0.0, 11), b = scene(0.2, 12, false, Eigen::Vector2d(8.0, -5.0));
+  // A smaller frame: the top-left 320 x 240 of the first.
+  testing::GreyImage small(320, 240, 0);
+  for (int y = 0; y < small.height; ++y) {
+    for (int x = 0; x < small.width; ++x) {
+      small.pixels[std::size_t(y) * small.width + x] = a.image.pixels[std::size_t(y) * 400 + x];
+    }
+  }
+  auto same = [](const WhiskerDetection& x, const WhiskerDetection& y) {
+    bool equal = x.error == y.error && x.whiskers.size() == y.whiskers.size() &&
+                 x.rejected.size() == y.rejected.size() && x.seeds == y.seeds &&
+                 x.noise_percent == y.noise_percent && x.backlight == y.backlight &&
+                 x.dark_level == y.dark_level && x.object_distance == y.object_distance;
+    for (std::size_t k = 0; equal && k < x.whiskers.size(); ++k) {
+      equal = x.whiskers[k].points == y.whiskers[k].points &&
+              x.whiskers[k].contrast_percent == y.whiskers[k].contrast_percent;
+    }
+    for (std::size_t k = 0; equal && k < x.rejected.size(); ++k) {
+      equal = x.rejected[k].points == y.rejected[k].points;
+    }
+    return equal;
+  };
+  WhiskerDetectionWorkspace workspace;
+  int frames = 0;
+  const testing::GreyImage& s = small;
+  for (const testing::GreyImage* image : {&a.image, &b.image, &s, &a.image, &s, &b.image}) {
+    SCOPED_TRACE("frame " + std::to_string(frames));
+    const WhiskerDetection fresh = detect_whiskers(image->view(), o);
+    const WhiskerDetection reused = detect_whiskers(image->view(), o, workspace);
+    ASSERT_TRUE(fresh.error.empty()) << fresh.error;
+    EXPECT_GE(fresh.whiskers.size(), 3u);
+    EXPECT_TRUE(same(fresh, reused));
+    ++frames;
+  }
+  EXPECT_EQ(workspace.detections(), frames);
+  EXPECT_LE(workspace.full_rebuilds(), workspace.detections());
+  // The comparison can fail: two different frames' detections differ.
+  EXPECT_FALSE(same(detect_whiskers(a.image.view(), o), detect_whiskers(b.image.view(), o)));
+}
+
 TEST(WhiskerDetection, BadOptionsAndNoFaceAreErrors) {
   const Scene s = scene(0.0, 11);
   WhiskerDetectionOptions o;
