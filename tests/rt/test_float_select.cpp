@@ -16,7 +16,9 @@ float nth(std::vector<float> v, std::size_t k) {
   return v[k];
 }
 
-bool same_bits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+bool same_bits(float a, float b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
 
 TEST(FloatSelect, EveryRankAsNthElementOnRandomSetsWithTies) {
   std::mt19937 rng(5);
@@ -28,8 +30,9 @@ TEST(FloatSelect, EveryRankAsNthElementOnRandomSetsWithTies) {
       std::uniform_int_distribution<int> grey(0, 9);
       for (float& x : v) {
         // positive and negative; few distinct values (ties); tiny values in one upper bin
-        x = kind == 0 ? wide(rng) : kind == 1 ? static_cast<float>(grey(rng)) * 0.5f + 1.0f
-                                              : 1.0f + 1e-6f * static_cast<float>(grey(rng));
+        x = kind == 0   ? wide(rng)
+            : kind == 1 ? static_cast<float>(grey(rng)) * 0.5f + 1.0f
+                        : 1.0f + 1e-6f * static_cast<float>(grey(rng));
       }
       auto visit = [&](auto&& f) {
         for (float x : v) f(x);

@@ -19,12 +19,15 @@ void chessboard_distance(const cv::Mat& mask, cv::Mat& depth) {
     std::uint8_t* d = depth.ptr<std::uint8_t>(y);
     std::uint8_t* v = from_row.data();
     if (neighbour_row >= 0) {
+      // One more than the least of the three neighbours in that row (saturating at 255); a plain
+      // loop over the inner pixels, which the compiler vectorises.
       const std::uint8_t* n = depth.ptr<std::uint8_t>(neighbour_row);
-      for (int x = 0; x < w; ++x) {
-        const std::uint8_t left = n[x > 0 ? x - 1 : x], right = n[x + 1 < w ? x + 1 : x];
-        const std::uint8_t m = std::min(std::min(left, right), n[x]);
-        v[x] = static_cast<std::uint8_t>(m == 255 ? 255 : m + 1);
-      }
+      auto plus_one = [](std::uint8_t m) {
+        return static_cast<std::uint8_t>(std::min<std::uint8_t>(m, 254) + 1);
+      };
+      v[0] = plus_one(std::min(n[0], n[w > 1 ? 1 : 0]));
+      for (int x = 1; x + 1 < w; ++x) v[x] = plus_one(std::min(std::min(n[x - 1], n[x]), n[x + 1]));
+      if (w > 1) v[w - 1] = plus_one(std::min(n[w - 2], n[w - 1]));
     } else {
       std::fill(from_row.begin(), from_row.end(), std::uint8_t{255});
     }
