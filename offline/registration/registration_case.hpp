@@ -130,14 +130,14 @@ struct RegistrationCase {
     double eigenvalue_floor = 0.2;
     /// GaussNewtonOptions::constant_strain_step_limit ("solver": {"constant_strain_step_limit":
     /// F}) and inverted_equilibrium_fallback ({"inverted_equilibrium_fallback": B}), both acting
-    /// on directions damped at μ ≥ rescue_min_damping ({"rescue_min_damping": F}); defaults off
-    /// (0, false; 1e3). With 0.5 and true the bunny bulged 2x (attached) converges where it
-    /// stalls and the rows that converge are unchanged; the bunny bent 90° (attached), killed
-    /// for memory (22 GB) while held tets were penalty rows, converges with the held tets
-    /// eliminated (GaussNewtonOptions::held_penalty_max_bytes; 2.3 GB). Still off: the bunny
-    /// bulged 2x was not rerun with that bound (issue 51, docs/registration.md "Default-safe").
-    double constant_strain_step_limit = 0.0;
-    bool inverted_equilibrium_fallback = false;
+    /// on directions damped at μ ≥ rescue_min_damping ({"rescue_min_damping": F}); defaults 0.5,
+    /// true, 1e3 (GaussNewtonOptions: off). The bunny bulged 2x and bent 90° (attached) converge
+    /// where they stall without them (the bent one with the held tets eliminated,
+    /// GaussNewtonOptions::held_penalty_max_bytes: 2.3 GB where penalty rows were killed at
+    /// 22 GB), and every other row rerun is byte-identical (issue 51, docs/registration.md
+    /// "Default-safe", "Held tets without rows").
+    double constant_strain_step_limit = 0.5;
+    bool inverted_equilibrium_fallback = true;
     double rescue_min_damping = 1e3;
     /// Sparse Cholesky method of every factorisation ("solver": {"cholesky": "auto" |
     /// "simplicial" | "supernodal"}; SparseCholeskyMethod). Simplicial has no BLAS, so
