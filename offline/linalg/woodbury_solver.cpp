@@ -188,6 +188,19 @@ WoodburyStatus WoodburySolver::apply_base_inverse(const Eigen::Ref<const Eigen::
   return WoodburyStatus::kOk;
 }
 
+void WoodburySolver::compute_z_psi() {
+  // ZΨ (r x 6): Ψ's column c sums component c over the tets, / √m; column by column
+  // (contiguous), not 6-row slices across all columns (a 6m-stride walk).
+  const Eigen::Index r = Zt_.cols(), m = num_tets_;
+  const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
+  Z_psi_.resize(r, 6);
+  for (Eigen::Index j = 0; j < r; ++j) {
+    Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+    for (Eigen::Index t = 0; t < m; ++t) sum += Zt_.col(j).segment<6>(6 * t);
+    Z_psi_.row(j) = inv_sqrt_m * sum.transpose();
+  }
+}
+
 WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt, double relative,
                                                               double floor) {
   factorised_ = false;
@@ -197,17 +210,8 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed(Eigen::MatrixXd Zt
     return WoodburyStatus::kInvalidInput;
   }
   const Eigen::Index r = Zt.cols();
-  const Eigen::Index m = num_tets_;
   Zt_ = std::move(Zt);
-  // ZΨ (r x 6): Ψ's column c sums component c over the tets, / √m.
-  const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
-  // Column by column (contiguous), not 6-row slices across all columns (a 6m-stride walk).
-  Z_psi_.resize(r, 6);
-  for (Eigen::Index j = 0; j < r; ++j) {
-    Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
-    for (Eigen::Index t = 0; t < m; ++t) sum += Zt_.col(j).segment<6>(6 * t);
-    Z_psi_.row(j) = inv_sqrt_m * sum.transpose();
-  }
+  compute_z_psi();
   const double delta = (relative * Z_psi_.squaredNorm() + floor * Zt_.squaredNorm()) / 6.0 + 1e-12;
   const double k = std::sqrt(1.0 + delta);
   nullspace_scale_ = k;
@@ -309,13 +313,7 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed_holding(
   const Eigen::Index r = Zt.cols();
   Zt_ = std::move(Zt);
   // δ as set_constraint_rows_transposed would compute it with the penalty rows appended.
-  const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
-  Z_psi_.resize(r, 6);
-  for (Eigen::Index j = 0; j < r; ++j) {
-    Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
-    for (Eigen::Index t = 0; t < m; ++t) sum += Zt_.col(j).segment<6>(6 * t);
-    Z_psi_.row(j) = inv_sqrt_m * sum.transpose();
-  }
+  compute_z_psi();
   const double penalty_rows = 6.0 * static_cast<double>(held_count) * penalty * penalty;
   const double delta = (relative * (Z_psi_.squaredNorm() + penalty_rows / static_cast<double>(m)) +
                         floor * (Zt_.squaredNorm() + penalty_rows)) /
@@ -323,6 +321,7 @@ WoodburyStatus WoodburySolver::set_constraint_rows_transposed_holding(
                        1e-12;
   nullspace_scale_ = std::sqrt(1.0 + delta);
   const double root_delta = std::sqrt(delta);
+  const double inv_sqrt_m = 1.0 / std::sqrt(static_cast<double>(m));
 
   // B_F's scalar part [(L^sc)²]_FF (upper triangle), factorised.
   Clock::time_point start = Clock::now();

@@ -159,6 +159,8 @@ class WoodburySolver {
   // One Woodbury solve (eq. 14) without refinement.
   WoodburyStatus solve_once(const Eigen::Ref<const Eigen::VectorXd>& h,
                             Eigen::Ref<Eigen::VectorXd> y);
+  // Z_psi_ = ZΨ from Zt_.
+  void compute_z_psi();
   // out = H v = L²v + ZᵀZv + δΨΨᵀv.
   void apply_hessian(const Eigen::VectorXd& v, Eigen::VectorXd& out) const;
   // In place: columns of U (m x k) ← L^sc⁺ U.
